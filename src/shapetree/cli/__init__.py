@@ -1,0 +1,1 @@
+"""shapetree.cli (work in progress)."""

@@ -1,0 +1,1 @@
+"""shapetree.curves (work in progress)."""

@@ -1,0 +1,1 @@
+"""shapetree.datasets (work in progress)."""

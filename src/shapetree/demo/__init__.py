@@ -1,0 +1,1 @@
+"""shapetree.demo (work in progress)."""

@@ -1,0 +1,1 @@
+"""shapetree.detection (work in progress)."""

@@ -1,0 +1,1 @@
+"""shapetree.geometry (work in progress)."""

@@ -1,0 +1,1 @@
+"""shapetree.matching (work in progress)."""

@@ -1,0 +1,1 @@
+"""shapetree.plotting (work in progress)."""

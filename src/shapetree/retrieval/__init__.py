@@ -1,0 +1,1 @@
+"""shapetree.retrieval (work in progress)."""

@@ -1,0 +1,1 @@
+"""shapetree.tree (work in progress)."""
