@@ -1,1 +1,23 @@
-"""shapetree.curves (work in progress)."""
+"""Curves: validation, resampling, orientation, point files and silhouettes from images.
+
+A curve is an ``(n, 2)`` float64 array of ``(x, y)`` points. Closed curves are stored without
+repeating the first point. Curves traced from images are in pixel coordinates with ``x`` the
+column and ``y`` the row (y points down), so ``"ccw"`` (positive :func:`signed_area`) looks
+clockwise on screen.
+"""
+
+from shapetree.curves._image import curve_from_image
+from shapetree.curves._io import load_curve, load_points
+from shapetree.curves._resample import resample
+from shapetree.curves._validate import as_curve, curve_length, orient, signed_area
+
+__all__ = [
+    "as_curve",
+    "curve_from_image",
+    "curve_length",
+    "load_curve",
+    "load_points",
+    "orient",
+    "resample",
+    "signed_area",
+]
