@@ -50,7 +50,10 @@ _CHUNK = 1 << 16
 _HEX = re.compile(r"^[0-9a-fA-F]+$")
 _MPEG7_NAME = re.compile(r"^(?P<cls>.+)-(?P<num>\d+)\.png$")
 _SWEDISH_NAME = re.compile(r"^l(?P<s>\d+)nr(?P<n>\d+)\.png$")
-_KIMIA_ENTRY = re.compile(r"S'(?P<file>[^'\n]+\.png)'\s*\n(?:p\d+\s*\n)?I(?P<id>\d+)")
+# One "filename -> class id" entry of a protocol-0 pickle: Python 2 writes S'name', Python 3 Vname.
+_KIMIA_ENTRY = re.compile(
+    r"(?:S'(?P<file>[^'\n]+\.png)'|V(?P<vfile>[^\n]+\.png))\s*\n(?:p\d+\s*\n)?I(?P<id>\d+)"
+)
 
 
 def _archive_kind(url: str) -> str:
@@ -201,7 +204,10 @@ def _arrange_kimia99(content: Path) -> None:
         raise DatasetError("archive has neither labels.csv nor the source's classes.txt")
     # classes.txt is a protocol-0 pickle of {filename: class_id}; parse it as text.
     text = src.read_text(encoding="latin-1")
-    entries = [(m.group("file"), int(m.group("id"))) for m in _KIMIA_ENTRY.finditer(text)]
+    entries = [
+        (m.group("file") or m.group("vfile"), int(m.group("id")))
+        for m in _KIMIA_ENTRY.finditer(text)
+    ]
     if not entries:
         raise DatasetError("classes.txt: no 'filename -> class id' entries found")
     bad = sorted({i for _, i in entries} - set(KIMIA99_CLASS_NAMES))
