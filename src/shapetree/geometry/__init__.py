@@ -1,1 +1,11 @@
-"""shapetree.geometry (work in progress)."""
+"""Geometry of point triples: Bookstein coordinates and the Procrustes ``dif`` (paper §2.1, §3)."""
+
+from shapetree.geometry._bookstein import (
+    bookstein,
+    from_bookstein,
+    helmert,
+    procrustes_dif,
+    triangle_dif,
+)
+
+__all__ = ["bookstein", "from_bookstein", "helmert", "procrustes_dif", "triangle_dif"]

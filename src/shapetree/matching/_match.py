@@ -1,0 +1,448 @@
+"""Elastic matching of curves by dynamic programming over the shape-tree (paper §3)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from shapetree._errors import ShapeTreeError
+from shapetree.curves import as_curve, resample
+from shapetree.matching._kernels import closed_root_min, fill_tables
+from shapetree.matching._prepare import (
+    Model,
+    Target,
+    TreeData,
+    prepare_model,
+    prepare_target,
+    tree_data,
+)
+from shapetree.tree import ShapeTree
+
+
+@dataclass(frozen=True)
+class MatchParams:
+    """Parameters of eq. (1).
+
+    Attributes
+    ----------
+    occlusion : float or None
+        Replacement-cost factor κ: every ψ(A', B') is bounded above by
+        ``κ λ_{A'} (|A'| + |B'|)``, lengths relative to the curves' total lengths
+        (§3, occlusion). ``None`` disables replacement.
+    """
+
+    occlusion: float | None = None
+
+    def __post_init__(self) -> None:
+        occ = self.occlusion
+        if occ is not None and not (np.isfinite(occ) and occ > 0):
+            raise ShapeTreeError(f"occlusion must be a positive number or None, got {occ}")
+
+    @property
+    def kernel_occlusion(self) -> float:
+        return -1.0 if self.occlusion is None else float(self.occlusion)
+
+
+@dataclass
+class MatchResult:
+    """Result of matching curve ``A`` (deformed) to curve ``B``.
+
+    Attributes
+    ----------
+    cost : float
+        ψ(A, B) (minimum over the shape-trees tried).
+    a, b : ndarray, shape (n, 2) and (m, 2)
+        The matched sample points.
+    closed : bool
+    a_to_b : ndarray, shape (n,)
+        For each point of ``A``, its position along ``B`` as a fractional index
+        (``j + t`` is between ``b_j`` and ``b_{j+1}``; modulo ``m`` for closed curves);
+        NaN inside replaced parts.
+    b_to_a : ndarray, shape (m,)
+        Likewise for each point of ``B``.
+    replaced : list of tuple
+        ``(a_start, a_end, b_start, b_end)`` index ranges (modulo n, m when closed) of
+        subcurves that were replaced rather than deformed (occlusion).
+    tree_index : int
+        Which of the model's shape-trees gave the best cost.
+    costs : ndarray, shape (n_trees,)
+        Cost with each shape-tree.
+    """
+
+    cost: float
+    a: np.ndarray
+    b: np.ndarray
+    closed: bool
+    a_to_b: np.ndarray
+    b_to_a: np.ndarray
+    replaced: list[tuple[int, int, int, int]] = field(default_factory=list)
+    tree_index: int = 0
+    costs: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def pairs(self) -> np.ndarray:
+        """Matched point pairs ``(x_a, y_a, x_b, y_b)`` for every non-replaced ``A`` point."""
+        ok = np.isfinite(self.a_to_b)
+        return np.hstack([self.a[ok], _interp(self.b, self.a_to_b[ok], self.closed)])
+
+
+def _interp(pts: np.ndarray, pos: np.ndarray, closed: bool) -> np.ndarray:
+    m = pts.shape[0]
+    i0 = np.floor(pos).astype(int)
+    t = (pos - i0)[:, None]
+    if closed:
+        i0 %= m
+        i1 = (i0 + 1) % m
+    else:
+        i0 = np.clip(i0, 0, m - 1)
+        i1 = np.minimum(i0 + 1, m - 1)
+    return (1 - t) * pts[i0] + t * pts[i1]
+
+
+def _fill(td: TreeData, target: Target, params: MatchParams) -> tuple[np.ndarray, np.ndarray]:
+    m = target.n_points
+    s_tab = np.empty((td.n_tables, m, m))
+    er_tab = np.empty((td.n_tables, m, 2 * m))
+    fill_tables(
+        td.left_tab,
+        td.right_tab,
+        td.lam,
+        td.a1,
+        td.a2r,
+        td.a2i,
+        td.flat,
+        td.alen,
+        td.seg_lam,
+        td.seg_alen,
+        target.z1,
+        target.z2r,
+        target.z2i,
+        target.g,
+        target.blen,
+        target.closed,
+        params.kernel_occlusion,
+        s_tab,
+        er_tab,
+    )
+    return s_tab, er_tab
+
+
+def _root_cost(
+    td: TreeData, s_tab: np.ndarray, er_tab: np.ndarray, closed: bool
+) -> tuple[float, int, int]:
+    m = s_tab.shape[1]
+    if closed:
+        r1 = td.table_of_root(td.tree.roots[0], 0)
+        r2 = td.table_of_root(td.tree.roots[1], 1)
+        return closed_root_min(s_tab[r1], er_tab[r2])
+    return float(s_tab[td.tree.roots[0], m - 1, 0]), 0, m - 1
+
+
+class _Traceback:
+    """Recover the correspondence from filled tables by re-deriving each argmin."""
+
+    def __init__(
+        self,
+        td: TreeData,
+        target: Target,
+        params: MatchParams,
+        s_tab: np.ndarray,
+        er_tab: np.ndarray,
+    ) -> None:
+        self.td, self.t, self.p = td, target, params
+        self.s_tab, self.er_tab = s_tab, er_tab
+        self.m = target.n_points
+        n_u = td.tree.unrolled.shape[0]
+        self.pos_a = np.full(n_u, np.nan)  # B position of each unrolled A point
+        self.pos_b = np.full(2 * self.m + 1, np.nan)  # A position of each unrolled B point
+        self.replaced: list[tuple[int, int, int, int]] = []
+        self.n_nodes = td.lam.shape[0]
+
+    def _replace_cost(self, lam: float, alen: float, s: int, length: int) -> float:
+        if self.p.occlusion is None:
+            return np.inf
+        return self.p.occlusion * lam * (alen + self.t.blen[length, s % self.m])
+
+    def assign(self, ia: int, jb: float) -> None:
+        self.pos_a[ia] = jb
+        if float(jb).is_integer():
+            self.pos_b[int(jb)] = ia
+
+    def segment(self, seg: int, s: int, length: int) -> None:
+        td = self.td
+        lam, alen = td.seg_lam[seg], td.seg_alen[seg]
+        cost = lam * self.t.g[length, s % self.m]
+        if self._replace_cost(lam, alen, s, length) < cost:
+            self.replaced.append((seg, seg + 1, s, s + length))
+            self.pos_b[s + 1 : s + length] = np.nan
+            return
+        for q in range(1, length):
+            self.pos_b[s + q] = seg + q / length
+
+    def node(self, v: int, s: int, length: int) -> None:
+        """Visit node ``v`` matched to the unrolled target range ``[s, s + length]``."""
+        td, tr = self.td, self.td.tree
+        if v >= self.n_nodes:
+            self.segment(v - self.n_nodes, s, length)
+            return
+        sa, ia, ea = int(tr.start[v]), int(tr.mid[v]), int(tr.end[v])
+        m = self.m
+        if length == 1:
+            best, k = td.flat[v], -1
+        else:
+            ks = np.arange(1, length)
+            ss = s % m
+            left = self.s_tab[td.left_tab[v], ks, ss]
+            right = self.er_tab[td.right_tab[v], length - ks, ss + length]
+            z1, z2r, z2i = (
+                self.t.z1[length, ks, ss],
+                self.t.z2r[length, ks, ss],
+                self.t.z2i[length, ks, ss],
+            )
+            ip_re = td.a1[v] * z1 + td.a2r[v] * z2r + td.a2i[v] * z2i
+            ip_im = td.a2r[v] * z2i - td.a2i[v] * z2r
+            tot = left + right + td.lam[v] * (1.0 - ip_re**2 - ip_im**2)
+            i = int(np.argmin(tot))
+            best, k = float(tot[i]), int(ks[i])
+        if self._replace_cost(td.lam[v], td.alen[v], s, length) < best:
+            self.replaced.append((sa, ea, s, s + length))
+            self.pos_a[sa + 1 : ea] = np.nan
+            self.pos_b[s + 1 : s + length] = np.nan
+            return
+        if k < 0:  # target segment: A' lies along it, evenly subdivided
+            for i in range(sa + 1, ea):
+                self.pos_a[i] = s + (i - sa) / (ea - sa)
+            return
+        self.assign(ia, s + k)
+        self.node(int(td.left_tab[v]), s, k)
+        self.node(int(td.right_tab[v]), s + k, length - k)
+
+
+def _traceback(
+    td: TreeData,
+    target: Target,
+    params: MatchParams,
+    s_tab: np.ndarray,
+    er_tab: np.ndarray,
+    s0: int,
+    l1: int,
+    n_a: int,
+) -> tuple:
+    tb = _Traceback(td, target, params, s_tab, er_tab)
+    tree = td.tree
+    m = target.n_points
+    if tree.closed:
+        k = tree.split_index
+        tb.assign(0, s0)
+        tb.assign(k, s0 + l1)
+        tb.assign(tree.n_points, s0 + m)
+        tb.node(td.table_of_root(tree.roots[0], 0), s0, l1)
+        tb.node(td.table_of_root(tree.roots[1], 1), s0 + l1, m - l1)
+    else:
+        tb.assign(0, 0)
+        tb.assign(n_a - 1, m - 1)
+        tb.node(tree.roots[0], 0, m - 1)
+    n = tree.n_points
+    pos_a = tb.pos_a[:n]
+    if tree.closed:
+        # undo the tree's rotation of A and fold the target's unrolled indices
+        pos_a = np.mod(pos_a, m)
+        a_to_b = np.empty(n)
+        a_to_b[(np.arange(n) + tree.offset) % n] = pos_a
+        pb = tb.pos_b[s0 : s0 + m]
+        idx = (np.arange(s0, s0 + m)) % m
+        b_to_a = np.empty(m)
+        b_to_a[idx] = np.mod(pb + tree.offset, n)
+        replaced = [
+            ((a0 + tree.offset) % n, (a1 + tree.offset) % n, b0 % m, b1 % m)
+            for a0, a1, b0, b1 in tb.replaced
+        ]
+    else:
+        a_to_b = pos_a
+        b_to_a = tb.pos_b[:m]
+        replaced = tb.replaced
+    return a_to_b, b_to_a, sorted(replaced)
+
+
+def match_prepared(
+    model: Model,
+    target: Target,
+    params: MatchParams | None = None,
+    *,
+    correspondence: bool = True,
+) -> MatchResult:
+    """Match a prepared model to a prepared target (reuses all per-curve work).
+
+    Parameters
+    ----------
+    model : Model
+        From :func:`prepare_model`.
+    target : Target
+        From :func:`prepare_target`; must be closed iff the model is.
+    params : MatchParams, optional
+    correspondence : bool
+        Whether to trace back the point correspondence (skip it for cost-only work).
+
+    Returns
+    -------
+    MatchResult
+    """
+    params = params or MatchParams()
+    if model.closed != target.closed:
+        raise ShapeTreeError(
+            "model and target must both be closed or both open "
+            f"(model closed={model.closed}, target closed={target.closed})"
+        )
+    costs = np.empty(len(model.trees))
+    best = None
+    for t, td in enumerate(model.trees):
+        s_tab, er_tab = _fill(td, target, params)
+        c, s0, l1 = _root_cost(td, s_tab, er_tab, model.closed)
+        costs[t] = c
+        if best is None or c < best[0]:
+            best = (c, t, s_tab, er_tab, s0, l1)
+    assert best is not None
+    cost, t, s_tab, er_tab, s0, l1 = best
+    n, m = model.points.shape[0], target.n_points
+    if correspondence:
+        a_to_b, b_to_a, replaced = _traceback(
+            model.trees[t], target, params, s_tab, er_tab, s0, l1, n
+        )
+    else:
+        a_to_b, b_to_a, replaced = np.full(n, np.nan), np.full(m, np.nan), []
+    return MatchResult(
+        cost=float(cost),
+        a=model.points,
+        b=target.points,
+        closed=model.closed,
+        a_to_b=a_to_b,
+        b_to_a=b_to_a,
+        replaced=replaced,
+        tree_index=t,
+        costs=costs,
+    )
+
+
+def match_cost(model: Model, target: Target, params: MatchParams | None = None) -> float:
+    """ψ(A, B) only (no traceback): the fast path for distance matrices."""
+    params = params or MatchParams()
+    best = np.inf
+    for td in model.trees:
+        s_tab, er_tab = _fill(td, target, params)
+        best = min(best, _root_cost(td, s_tab, er_tab, model.closed)[0])
+    return float(best)
+
+
+def match(
+    a: ArrayLike,
+    b: ArrayLike,
+    *,
+    closed: bool = True,
+    n_points: int | None = None,
+    weight: float = 1.0,
+    occlusion: float | None = None,
+    n_trees: int = 1,
+    split: str = "half",
+) -> MatchResult:
+    """Deform curve ``a`` onto curve ``b`` with minimum shape-tree deformation (eq. 1).
+
+    Parameters
+    ----------
+    a, b : array_like, shapes (n, 2) and (m, 2)
+        Sample points. Closed curves without a repeated first point.
+    closed : bool
+        Open curves: endpoints map to endpoints. Closed curves: every cyclic alignment
+        of ``b`` is tried (O(n m^3)).
+    n_points : int, optional
+        Resample both curves to this many points, evenly in arc length, first.
+    weight : float
+        λ of a node is ``weight`` times its subcurve's length relative to ``a``'s length.
+    occlusion : float, optional
+        Replacement cost factor κ (see :class:`MatchParams`).
+    n_trees : int
+        Number of shape-trees of ``a`` tried (best taken).
+    split : {"half", "best"}
+        Midpoint rule.
+
+    Returns
+    -------
+    MatchResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    >>> circle = np.c_[np.cos(t), np.sin(t)]
+    >>> round(match(circle, 3 * circle[::-1][::-1]).cost, 9)
+    0.0
+    """
+    a = as_curve(a, closed=closed, name="curve A")
+    b = as_curve(b, closed=closed, name="curve B")
+    if n_points is not None:
+        a = resample(a, n_points, closed=closed)
+        b = resample(b, n_points, closed=closed)
+    model = prepare_model(a, closed=closed, n_trees=n_trees, split=split, weight=weight)
+    target = prepare_target(b, closed=closed)
+    return match_prepared(model, target, MatchParams(occlusion=occlusion))
+
+
+def subcurve_table(
+    contour: ArrayLike | ShapeTree,
+    target: Target,
+    *,
+    weight: float = 1.0,
+    length_scale: float | None = None,
+    split: str = "half",
+    occlusion: float | None = None,
+) -> np.ndarray:
+    """Cost of deforming an open curve to every subcurve of a closed target (§4, stage 3).
+
+    Parameters
+    ----------
+    contour : array_like, shape (n, 2), or ShapeTree
+        Open curve (an image contour); its shape-tree is the one deformed.
+    target : Target
+        Closed target (the model), from :func:`prepare_target`.
+    weight, length_scale : float
+        λ of a contour node is ``weight * arclength / length_scale`` (default: the
+        contour's own length).
+    split : {"half", "best"}
+    occlusion : float, optional
+
+    Returns
+    -------
+    ndarray, shape (m, m)
+        ``[s, L]``: the target subcurve from index ``s`` forward ``L`` segments
+        (``1 <= L <= m - 1``); column 0 is ``inf``.
+    """
+    from shapetree.tree import build_shape_tree
+
+    if not target.closed:
+        raise ShapeTreeError("subcurve_table needs a closed target (the model)")
+    tree = (
+        contour
+        if isinstance(contour, ShapeTree)
+        else build_shape_tree(contour, closed=False, split=split)
+    )
+    if tree.closed:
+        raise ShapeTreeError("subcurve_table needs an open contour")
+    td = tree_data(tree, weight=weight, length_scale=length_scale)
+    s_tab, _ = _fill(td, target, MatchParams(occlusion=occlusion))
+    out = s_tab[tree.roots[0]].T.copy()
+    out[:, 0] = np.inf
+    return out
+
+
+__all__ = [
+    "MatchParams",
+    "MatchResult",
+    "Model",
+    "Target",
+    "match",
+    "match_cost",
+    "match_prepared",
+    "prepare_model",
+    "prepare_target",
+    "subcurve_table",
+]

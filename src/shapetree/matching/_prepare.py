@@ -1,0 +1,237 @@
+"""Per-curve precomputation: :class:`Model` (shape-trees of A) and :class:`Target` (B).
+
+Both are computed once per curve and reused for every matching the curve takes part in
+(one-vs-many retrieval, contour-vs-model tables in detection).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from shapetree._errors import ShapeTreeError
+from shapetree.curves import as_curve
+from shapetree.matching._kernels import target_tables
+from shapetree.tree import SPLITS, ShapeTree, build_shape_tree
+
+_SQRT2 = np.sqrt(2.0)
+_SQRT6 = np.sqrt(6.0)
+
+
+def _helmert_from_bookstein(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-size Helmert coordinates ``(h1 real, h2 complex)`` of triangles (-.5, .5, w)."""
+    h1 = np.full(w.shape, 1.0 / _SQRT2)
+    h2 = 2.0 * w / _SQRT6
+    norm = np.sqrt(h1**2 + np.abs(h2) ** 2)
+    return h1 / norm, h2 / norm
+
+
+@dataclass(frozen=True, eq=False)
+class Target:
+    """Precomputed data of a target curve ``B`` (the curve a model is deformed onto).
+
+    Attributes
+    ----------
+    points : ndarray, shape (m, 2)
+    closed : bool
+        Closed targets have cyclic subcurves.
+    z1, z2r, z2i : ndarray, shape (m, m, m)
+        Unit-size Helmert coordinates of the triangles ``(b_s, b_{s+k}, b_{s+L})``,
+        indexed ``[L, k, s]`` and rotated so that the first coordinate is real.
+    g : ndarray, shape (m, m)
+        ``g[L, s]``: base-case cost per unit λ of a straight segment subdivided into
+        ``L + 1`` points and matched point for point to ``B[s..s+L]``.
+    blen : ndarray, shape (m, m)
+        ``blen[L, s]``: arclength of ``B[s..s+L]`` relative to the length of ``B``.
+    """
+
+    points: np.ndarray
+    closed: bool
+    z1: np.ndarray
+    z2r: np.ndarray
+    z2i: np.ndarray
+    g: np.ndarray
+    blen: np.ndarray
+
+    @property
+    def n_points(self) -> int:
+        return int(self.points.shape[0])
+
+
+def prepare_target(points: ArrayLike, *, closed: bool = True) -> Target:
+    """Precompute the target-side data of eq. (1) for curve ``B``.
+
+    Parameters
+    ----------
+    points : array_like, shape (m, 2)
+        Sample points of ``B`` (``m >= 3``).
+    closed : bool
+        Whether ``B`` is closed (its subcurves then wrap around).
+
+    Returns
+    -------
+    Target
+    """
+    b = as_curve(points, closed=closed, name="target curve")
+    z1, z2r, z2i, g, blen = target_tables(
+        np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]), closed
+    )
+    return Target(points=b, closed=closed, z1=z1, z2r=z2r, z2i=z2i, g=g, blen=blen)
+
+
+@dataclass(frozen=True, eq=False)
+class TreeData:
+    """Per-node constants of one shape-tree, laid out for the kernel."""
+
+    tree: ShapeTree
+    left_tab: np.ndarray
+    right_tab: np.ndarray
+    lam: np.ndarray
+    a1: np.ndarray
+    a2r: np.ndarray
+    a2i: np.ndarray
+    flat: np.ndarray
+    alen: np.ndarray
+    seg_start: np.ndarray
+    seg_lam: np.ndarray
+    seg_alen: np.ndarray
+
+    @property
+    def n_tables(self) -> int:
+        return int(self.lam.shape[0] + self.seg_lam.shape[0])
+
+    def table_of_root(self, r: int, half: int) -> int:
+        """Table index of a root (a half that is a single segment has no node)."""
+        if r >= 0:
+            return r
+        t = self.tree
+        seg = 0 if half == 0 else t.split_index
+        return int(self.lam.shape[0] + np.searchsorted(self.seg_start, seg))
+
+
+def tree_data(tree: ShapeTree, *, weight: float, length_scale: float | None) -> TreeData:
+    """Lay out the per-node constants of ``tree`` for :func:`fill_tables`."""
+    u = tree.unrolled
+    seglen = np.hypot(*np.diff(u, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seglen)])
+    scale = float(cum[-1]) if length_scale is None else float(length_scale)
+    if not scale > 0:
+        raise ShapeTreeError("length_scale must be positive")
+    k = tree.n_nodes
+    n_seg = u.shape[0] - 1
+    seg_start = np.arange(n_seg)
+    alen = (cum[tree.end] - cum[tree.start]) / scale
+    lam = weight * alen
+    w = tree.coords[:, 0] + 1j * tree.coords[:, 1]
+    a1, a2 = _helmert_from_bookstein(w)
+    # cost of each node's own triangle against a straight, evenly subdivided segment
+    t = (tree.mid - tree.start) / (tree.end - tree.start)
+    c1, c2 = _helmert_from_bookstein(t - 0.5 + 0j)
+    ip = a1 * c1 + np.conj(a2) * c2
+    own = lam * np.maximum(1.0 - np.abs(ip) ** 2, 0.0)
+    flat = own.copy()
+    for v in range(k):  # post-order: children first
+        for c in (tree.left[v], tree.right[v]):
+            if c >= 0:
+                flat[v] += flat[c]
+    left_tab = np.where(tree.left >= 0, tree.left, k + tree.start)
+    right_tab = np.where(tree.right >= 0, tree.right, k + tree.mid)
+    seg_alen = seglen / scale
+    return TreeData(
+        tree=tree,
+        left_tab=left_tab.astype(np.int64),
+        right_tab=right_tab.astype(np.int64),
+        lam=np.ascontiguousarray(lam),
+        a1=np.ascontiguousarray(a1),
+        a2r=np.ascontiguousarray(a2.real),
+        a2i=np.ascontiguousarray(a2.imag),
+        flat=flat,
+        alen=alen,
+        seg_start=seg_start,
+        seg_lam=weight * seg_alen,
+        seg_alen=seg_alen,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Shape-trees of a curve ``A`` (the curve that is deformed), ready for matching.
+
+    Attributes
+    ----------
+    points : ndarray, shape (n, 2)
+    closed : bool
+    trees : list of TreeData
+        One entry per shape-tree (§3: "we usually compute matchings using 2 to 4
+        different shape-trees and pick the best one").
+    weight : float
+    """
+
+    points: np.ndarray
+    closed: bool
+    trees: list[TreeData]
+    weight: float
+
+
+def tree_variants(n: int, closed: bool, n_trees: int, split: str) -> list[dict]:
+    """Keyword arguments of :func:`build_shape_tree` for ``n_trees`` different trees.
+
+    Closed curves: the same midpoint rule started at ``n_trees`` evenly spaced points
+    (offsets ``t * n // n_trees``), so each tree cuts the curve into different subtrees.
+    Open curves (endpoints are fixed): the alternative midpoint rule(s).
+    """
+    if n_trees < 1:
+        raise ShapeTreeError(f"n_trees must be at least 1, got {n_trees}")
+    if split not in SPLITS:
+        raise ShapeTreeError(f"unknown midpoint rule split={split!r}; use one of {SPLITS}")
+    if closed:
+        return [{"split": split, "offset": (t * n) // n_trees} for t in range(n_trees)]
+    rules = [split] + [s for s in SPLITS if s != split]
+    if n_trees > len(rules):
+        raise ShapeTreeError(
+            f"open curves support at most {len(rules)} shape-trees (one per midpoint rule)"
+        )
+    return [{"split": r} for r in rules[:n_trees]]
+
+
+def prepare_model(
+    points: ArrayLike,
+    *,
+    closed: bool = True,
+    n_trees: int = 1,
+    split: str = "half",
+    weight: float = 1.0,
+    length_scale: float | None = None,
+) -> Model:
+    """Build the shape-tree(s) of curve ``A`` and their kernel constants.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+    closed : bool
+    n_trees : int
+        Number of different shape-trees (closed: start offsets ``t n / n_trees``).
+    split : {"half", "best"}
+        Midpoint rule (see :func:`shapetree.tree.build_shape_tree`).
+    weight : float
+        λ of a node is ``weight * arclength(A') / length_scale``.
+    length_scale : float, optional
+        Length that normalises λ; default the length of ``A``, which makes costs
+        invariant to scaling ``A``.
+
+    Returns
+    -------
+    Model
+    """
+    a = as_curve(points, closed=closed, name="model curve")
+    if not (np.isfinite(weight) and weight > 0):
+        raise ShapeTreeError(f"weight must be a positive number, got {weight}")
+    trees = [
+        tree_data(
+            build_shape_tree(a, closed=closed, **kw), weight=weight, length_scale=length_scale
+        )
+        for kw in tree_variants(a.shape[0], closed, n_trees, split)
+    ]
+    return Model(points=a, closed=closed, trees=trees, weight=float(weight))
