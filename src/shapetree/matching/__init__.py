@@ -13,7 +13,11 @@ from shapetree.matching._match import (
     subcurve_table,
 )
 from shapetree.matching._prepare import Model, Target, prepare_model, prepare_target
-from shapetree.matching._reference import reference_match_cost, reference_subcurve_table
+from shapetree.matching._reference import (
+    reference_correspondence,
+    reference_match_cost,
+    reference_subcurve_table,
+)
 
 __all__ = [
     "MatchParams",
@@ -25,6 +29,7 @@ __all__ = [
     "match_prepared",
     "prepare_model",
     "prepare_target",
+    "reference_correspondence",
     "reference_match_cost",
     "reference_subcurve_table",
     "subcurve_table",

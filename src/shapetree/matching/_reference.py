@@ -100,8 +100,7 @@ class ReferenceMatcher:
             (int(s), int(e)): v for v, (s, e) in enumerate(zip(tree.start, tree.end, strict=True))
         }
         self.mids = {
-            (int(s), int(e)): int(i)
-            for s, i, e in zip(tree.start, tree.mid, tree.end, strict=True)
+            (int(s), int(e)): int(i) for s, i, e in zip(tree.start, tree.mid, tree.end, strict=True)
         }
         self.psi = lru_cache(maxsize=None)(self._psi)
 
@@ -215,3 +214,72 @@ def reference_subcurve_table(
         for length in range(1, m):
             out[s, length] = rm.psi(0, tree.n_points - 1, s, length)
     return out
+
+
+def reference_correspondence(
+    tree: ShapeTree,
+    b: np.ndarray,
+    *,
+    weight: float = 1.0,
+    tol: float = 1e-9,
+) -> tuple[float, dict[int, int], bool]:
+    """Optimal cost and the target index of every *node* point of ``A`` (no occlusion).
+
+    Returns
+    -------
+    cost : float
+    mapping : dict
+        Unrolled index of each endpoint/midpoint of ``A`` -> unrolled index on ``B``.
+    unique : bool
+        False when some choice along the way was tied within ``tol`` (then another
+        optimal correspondence exists).
+    """
+    rm = ReferenceMatcher(tree, b, cyclic=tree.closed, weight=weight)
+    m = rm.m
+    unique = True
+    mapping: dict[int, int] = {}
+
+    def pick(cands: list[tuple[float, object]]) -> object:
+        nonlocal unique
+        cands.sort(key=lambda c: c[0])
+        if len(cands) > 1 and cands[1][0] - cands[0][0] <= tol * (1 + abs(cands[0][0])):
+            unique = False
+        return cands[0][1]
+
+    def visit(sa: int, ea: int, s: int, length: int) -> None:
+        if ea - sa < 2 or length < 2:
+            return
+        i = rm.mids[(sa, ea)]
+        lam = weight * _arclen(rm.u[sa : ea + 1]) / rm.la
+        bsub = rm.b_sub(s, length)
+        cands = []
+        for j in range(1, length):
+            c = (
+                rm.psi(sa, i, s, j)
+                + rm.psi(i, ea, (s + j) % m if rm.cyclic else s + j, length - j)
+                + lam * float(triangle_dif(rm.u[[sa, i, ea]], bsub[[0, j, length]]))
+            )
+            cands.append((c, j))
+        j = int(pick(cands))
+        mapping[i] = s + j
+        visit(sa, i, s, j)
+        visit(i, ea, s + j, length - j)
+
+    if not tree.closed:
+        n = tree.n_points
+        mapping[0], mapping[n - 1] = 0, m - 1
+        cost = rm.psi(0, n - 1, 0, m - 1)
+        visit(0, n - 1, 0, m - 1)
+        return cost, mapping, unique
+    k, n = tree.split_index, tree.n_points
+    cands = []
+    for s in range(m):
+        for length in range(1, m):
+            c = rm.psi(0, k, s, length) + rm.psi(k, n, (s + length) % m, m - length)
+            cands.append((c, (s, length)))
+    s, length = pick(cands)  # type: ignore[misc]
+    cost = cands[0][0]
+    mapping[0], mapping[k], mapping[n] = s, s + length, s + m
+    visit(0, k, s, length)
+    visit(k, n, s + length, m - length)
+    return cost, mapping, unique

@@ -110,15 +110,17 @@ class ShapeTree:
 def _best_mid(u: np.ndarray, s: int, e: int) -> int:
     """Index in (s, e) whose coarse curve (u_s, u_i, u_e) best approximates U[s..e]."""
     pts = u[s : e + 1]
-    best_i, best_err = s + (e - s) // 2, np.inf
-    for i in range(1, e - s):
-        err = (
+    errs = np.array(
+        [
             _seg_sqdist(pts[1:i], pts[0], pts[i]).sum()
             + _seg_sqdist(pts[i + 1 : -1], pts[i], pts[-1]).sum()
-        )
-        # prefer the balanced split on ties (keeps trees shallow)
-        if err < best_err - 1e-12 * (1 + best_err):
-            best_i, best_err = s + i, err
+            for i in range(1, e - s)
+        ]
+    )
+    # among (numerically) equal errors prefer the most balanced split: keeps trees shallow
+    near = np.flatnonzero(errs <= errs.min() + 1e-12 * (1.0 + errs.min()))
+    centre = (e - s) / 2.0
+    best_i = s + 1 + int(near[np.argmin(np.abs(near + 1 - centre))])
     return best_i
 
 

@@ -1,0 +1,81 @@
+"""Bookstein coordinates and Procrustes dif (paper §2.1, §3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from shapetree.geometry import bookstein, from_bookstein, procrustes_dif, triangle_dif
+
+
+def test_bookstein_maps_base_points_to_fixed_frame():
+    p1, p2 = np.array([3.0, 1.0]), np.array([5.0, 4.0])
+    np.testing.assert_allclose(bookstein(p1, p2, p1), [-0.5, 0.0], atol=1e-15)
+    np.testing.assert_allclose(bookstein(p1, p2, p2), [0.5, 0.0], atol=1e-15)
+    # the midpoint of the base maps to the origin, a perpendicular offset to the y axis
+    np.testing.assert_allclose(bookstein(p1, p2, (p1 + p2) / 2), [0.0, 0.0], atol=1e-15)
+    perp = (p1 + p2) / 2 + np.array([-3.0, 2.0])  # (2, 3) rotated by +90 degrees
+    np.testing.assert_allclose(bookstein(p1, p2, perp), [0.0, 1.0], atol=1e-15)
+
+
+def test_bookstein_rejects_equal_base_points():
+    with pytest.raises(ValueError, match="distinct"):
+        bookstein([1, 1], [1, 1], [0, 0])
+
+
+coords = st.floats(-100, 100, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(coords, min_size=6, max_size=6), coords, st.floats(0.1, 10), coords, coords)
+def test_bookstein_invariant_to_similarity(xs, angle, scale, tx, ty):
+    p = np.array(xs).reshape(3, 2)
+    if np.hypot(*(p[1] - p[0])) < 1e-3:
+        return
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    q = scale * p @ rot.T + [tx, ty]
+    u = bookstein(p[0], p[1], p[2])
+    v = bookstein(q[0], q[1], q[2])
+    np.testing.assert_allclose(u, v, atol=1e-7 * (1 + np.abs(u).max()))
+    np.testing.assert_allclose(from_bookstein(q[0], q[1], u), q[2], atol=1e-6 * (1 + abs(q).max()))
+
+
+def test_procrustes_dif_values():
+    # identical shapes: 0; dif is bounded by 1 and symmetric
+    rng = np.random.default_rng(0)
+    u, v = rng.normal(size=(50, 2)), rng.normal(size=(50, 2))
+    np.testing.assert_allclose(procrustes_dif(u, u), 0, atol=1e-15)
+    d = procrustes_dif(u, v)
+    assert np.all((d >= 0) & (d <= 1))
+    np.testing.assert_allclose(d, procrustes_dif(v, u), atol=1e-15)
+    # mirror images are different shapes unless the triangle is symmetric
+    assert procrustes_dif([0.3, 0.4], [0.3, -0.4]) > 0.1
+
+
+def test_procrustes_dif_matches_explicit_procrustes_fit():
+    """1 - |<z,w>|^2 equals the residual of the optimal similarity fit of unit triangles."""
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        a, b = rng.normal(size=(3, 2)), rng.normal(size=(3, 2))
+        za = (a[:, 0] + 1j * a[:, 1]) - (a[:, 0] + 1j * a[:, 1]).mean()
+        zb = (b[:, 0] + 1j * b[:, 1]) - (b[:, 0] + 1j * b[:, 1]).mean()
+        za /= np.linalg.norm(za)
+        zb /= np.linalg.norm(zb)
+        # best complex scale-rotation beta minimising |zb - beta za|^2
+        beta = np.vdot(za, zb)
+        resid = np.linalg.norm(zb - beta * za) ** 2
+        tri_a, tri_b = a[[0, 2, 1]], b[[0, 2, 1]]  # (first, middle, last) order
+        assert triangle_dif(tri_a, tri_b) == pytest.approx(resid, abs=1e-12)
+        u = bookstein(a[0], a[1], a[2])
+        v = bookstein(b[0], b[1], b[2])
+        assert procrustes_dif(u, v) == pytest.approx(resid, abs=1e-12)
+
+
+def test_triangle_dif_degenerate_triangles():
+    # first == last still compares shapes; a point triangle is at distance 1
+    t1 = np.array([[0, 0], [1, 0], [0, 0]], float)
+    t2 = np.array([[2, 2], [2, 5], [2, 2]], float)
+    assert triangle_dif(t1, t2) == pytest.approx(0.0, abs=1e-15)
+    assert triangle_dif(np.zeros((3, 2)), t2) == 1.0

@@ -1,0 +1,219 @@
+"""Elastic matching (eq. 1): the compiled kernel against the literal reference, and the
+properties the paper's definition implies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _shapes import blob, similarity
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from shapetree import ShapeTreeError
+from shapetree.matching import (
+    MatchParams,
+    match,
+    match_cost,
+    match_prepared,
+    prepare_model,
+    prepare_target,
+    reference_correspondence,
+    reference_match_cost,
+    reference_subcurve_table,
+    subcurve_table,
+)
+from shapetree.tree import build_shape_tree, deform
+
+
+def _fast(a, b, closed, **kw):
+    occ = kw.pop("occlusion", None)
+    return match_prepared(
+        prepare_model(a, closed=closed, **kw),
+        prepare_target(b, closed=closed),
+        MatchParams(occlusion=occ),
+    )
+
+
+# --- the oracle -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("closed", [False, True])
+@pytest.mark.parametrize("split", ["half", "best"])
+@pytest.mark.parametrize("occlusion", [None, 0.3, 2.0])
+def test_kernel_equals_reference_on_random_curves(closed, split, occlusion):
+    rng = np.random.default_rng(hash((closed, split, occlusion)) % 2**32)
+    for _ in range(12):
+        n, m = (int(x) for x in rng.integers(3, 12, size=2))
+        a, b = blob(n, rng, closed=closed), blob(m, rng, closed=closed)
+        weight = float(rng.uniform(0.5, 2.0))
+        tree = build_shape_tree(a, closed=closed, split=split)
+        ref = reference_match_cost(tree, b, weight=weight, occlusion=occlusion)
+        fast = _fast(a, b, closed, split=split, weight=weight, occlusion=occlusion).cost
+        assert fast == pytest.approx(ref, rel=1e-9, abs=1e-12)
+
+
+def test_subcurve_table_equals_reference():
+    rng = np.random.default_rng(11)
+    for occlusion in (None, 0.5):
+        contour, model = blob(7, rng, closed=False), blob(9, rng)
+        tree = build_shape_tree(contour, closed=False)
+        ref = reference_subcurve_table(tree, model, occlusion=occlusion, length_scale=3.0)
+        fast = subcurve_table(tree, prepare_target(model), occlusion=occlusion, length_scale=3.0)
+        assert fast.shape == (9, 9)
+        assert np.all(np.isinf(fast[:, 0]))
+        np.testing.assert_allclose(fast[:, 1:], ref[:, 1:], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_correspondence_equals_reference_when_unique(closed):
+    rng = np.random.default_rng(21 + closed)
+    compared = 0
+    for _ in range(25):
+        n, m = (int(x) for x in rng.integers(4, 11, size=2))
+        a, b = blob(n, rng, closed=closed), blob(m, rng, closed=closed)
+        tree = build_shape_tree(a, closed=closed)
+        cost, mapping, unique = reference_correspondence(tree, b)
+        res = _fast(a, b, closed)
+        assert res.cost == pytest.approx(cost, rel=1e-9, abs=1e-12)
+        if not unique:
+            continue
+        compared += 1
+        for ia, jb in mapping.items():
+            if closed:
+                assert res.a_to_b[ia % n] == pytest.approx(jb % m)
+            else:
+                assert res.a_to_b[ia] == pytest.approx(jb)
+    assert compared >= 15
+
+
+# --- properties -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("closed", [False, True])
+@pytest.mark.parametrize("n_trees", [1, 2])
+def test_self_match_costs_zero(closed, n_trees):
+    a = blob(40, np.random.default_rng(1), closed=closed)
+    res = match(a, a, closed=closed, n_trees=n_trees)
+    assert res.cost == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(res.a_to_b, np.arange(40))  # identity correspondence
+    np.testing.assert_allclose(res.b_to_a, np.arange(40))
+
+
+angles = st.floats(-np.pi, np.pi)
+scales = st.floats(0.05, 20.0)
+shifts = st.tuples(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10**6), angles, scales, shifts, st.booleans(), st.booleans())
+def test_cost_invariant_to_similarity_of_either_curve(seed, angle, scale, shift, which, closed):
+    rng = np.random.default_rng(seed)
+    a, b = blob(16, rng, closed=closed), blob(19, rng, closed=closed)
+    base = match(a, b, closed=closed, occlusion=1.0).cost
+    if which:
+        a = similarity(a, angle, scale, shift)
+    else:
+        b = similarity(b, angle, scale, shift)
+    assert match(a, b, closed=closed, occlusion=1.0).cost == pytest.approx(base, rel=1e-9)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 10**6), st.integers(1, 30))
+def test_closed_cost_independent_of_b_start(seed, shift):
+    rng = np.random.default_rng(seed)
+    a, b = blob(20, rng), blob(31, rng)
+    c0 = match(a, b).cost
+    assert match(a, np.roll(b, shift, axis=0)).cost == pytest.approx(c0, rel=1e-9, abs=1e-13)
+
+
+def _cyclic_monotone(pos: np.ndarray, period: int) -> bool:
+    p = pos[np.isfinite(pos)]
+    steps = np.mod(np.diff(np.r_[p, p[:1]]), period)
+    return bool(np.isclose(steps.sum(), period) or np.isclose(steps.sum(), 0.0))
+
+
+@pytest.mark.parametrize("occlusion", [None, 0.2])
+def test_correspondences_monotone_along_both_curves(occlusion):
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        a, b = blob(30, rng), blob(26, rng)
+        res = match(a, b, occlusion=occlusion)
+        assert _cyclic_monotone(res.a_to_b, 26)
+        assert _cyclic_monotone(res.b_to_a, 30)
+        ao, bo = blob(30, rng, closed=False), blob(26, rng, closed=False)
+        r2 = match(ao, bo, closed=False, occlusion=occlusion)
+        for pos in (r2.a_to_b, r2.b_to_a):
+            p = pos[np.isfinite(pos)]
+            assert np.all(np.diff(p) >= -1e-12)
+        assert r2.a_to_b[0] == 0 and r2.a_to_b[-1] == 25
+
+
+def test_larger_deformations_cost_more_on_average():
+    rng = np.random.default_rng(8)
+    a = blob(48, rng, wobble=0.15)
+    tree = build_shape_tree(a, closed=True)
+    means = []
+    for scale in (0.02, 0.06, 0.15):
+        costs = [match(a, deform(tree, scale, rng=seed)).cost for seed in range(12)]
+        means.append(np.mean(costs))
+    assert means[0] < means[1] < means[2]
+
+
+def test_several_trees_take_the_best():
+    rng = np.random.default_rng(9)
+    a, b = blob(32, rng), blob(32, rng)
+    res = match(a, b, n_trees=4)
+    assert len(res.costs) == 4
+    assert res.cost == pytest.approx(res.costs.min())
+    for t in range(4):  # each entry is the cost of a single tree started at offset t*n/4
+        model = prepare_model(np.roll(a, -(t * 32) // 4, axis=0))
+        assert match_cost(model, prepare_target(b)) == pytest.approx(res.costs[t], rel=1e-9)
+    assert res.cost <= match(a, b).cost + 1e-12
+
+
+def test_occlusion_replaces_a_missing_part():
+    # a square versus the same square with a big bump on one side: only the bump's side
+    # should be replaced, and replacement must lower the cost
+    t = np.linspace(0, 4, 80, endpoint=False)
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], float)
+    sq = np.array([np.interp(t, np.arange(5), square[:, i]) for i in (0, 1)]).T
+    bumped = sq.copy()
+    side = (sq[:, 1] == 0) & (sq[:, 0] > 0.25) & (sq[:, 0] < 0.75)
+    bumped[side, 1] -= 0.6 * np.sin(np.pi * (sq[side, 0] - 0.25) / 0.5)
+    plain = match(sq, bumped, n_trees=4)
+    occl = match(sq, bumped, n_trees=4, occlusion=0.5)
+    assert occl.cost < plain.cost
+    assert occl.replaced, "the bump should be replaced"
+    covered = np.zeros(80, bool)
+    for _a0, _a1, b0, b1 in occl.replaced:
+        covered[np.arange(b0, b1 + (80 if b1 < b0 else 0) + 1) % 80] = True
+    assert covered[side].mean() >= 0.6  # most of the bump is what got replaced
+    assert covered.sum() < 40  # and not half the square
+    inside = np.isnan(occl.a_to_b)
+    assert inside.any() and not inside.all()
+
+
+def test_match_resamples_when_asked():
+    rng = np.random.default_rng(2)
+    res = match(blob(200, rng), blob(90, rng), n_points=40)
+    assert res.a.shape == (40, 2) and res.b.shape == (40, 2)
+    assert res.pairs().shape[1] == 4
+
+
+def test_bad_input_is_reported():
+    rng = np.random.default_rng(0)
+    a = blob(10, rng)
+    with pytest.raises(ShapeTreeError, match="closed"):
+        match_prepared(prepare_model(a), prepare_target(a, closed=False))
+    with pytest.raises(ShapeTreeError, match="occlusion"):
+        MatchParams(occlusion=-1)
+    with pytest.raises(ShapeTreeError, match="weight"):
+        prepare_model(a, weight=0)
+    with pytest.raises(ShapeTreeError, match="n_trees"):
+        prepare_model(a, n_trees=0)
+    with pytest.raises(ShapeTreeError, match="NaN"):
+        match(np.array([[0, 0], [1, np.nan], [1, 1]]), a)
+    with pytest.raises(ShapeTreeError, match="fewer than 3"):
+        match(np.array([[0.0, 0.0], [1.0, 0.0]]), a)
+    with pytest.raises(ShapeTreeError, match=r"\(n, 2\)"):
+        match(np.zeros((5, 3)), a)
