@@ -1,0 +1,483 @@
+"""Detecting a deformable model in a cluttered image (paper §4, all four stages)."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from shapetree._errors import ImageError, ShapeTreeError
+
+from ._contours import TracedContour, polyline_length, resample_polyline, trace_contours_detailed
+from ._edges import edge_map, load_edges, load_image
+from ._model import DetectionModel, load_model
+from ._stitch import complete_matches, run_stitch
+from ._tables import contour_tables
+
+__all__ = ["Detection", "DetectParams", "detect", "detect_detailed", "DetectionRun"]
+
+
+@dataclass(frozen=True)
+class DetectParams:
+    """Parameters of :func:`detect` (all lengths in image pixels).
+
+    Attributes
+    ----------
+    m : int
+        Model samples for the contour tables and the stitching (30).
+    threshold, low, min_length, max_turn, turn_window, smooth
+        Contour tracing, see :func:`trace_contours` (0.15, None, 15 px,
+        60 degrees, 5 px, 1 px).
+    max_contours : int
+        Keep the contours with the largest ``length * mean strength`` (120).
+    contour_spacing : float
+        Contours are resampled for the tables with about this spacing (6 px) ...
+    contour_min_points, contour_max_points : int
+        ... but with at least 3 and at most 24 points.
+    tau : float
+        Max endpoint distance for a direct composition (12 px).
+    lam : float
+        Weight of the composition triangle terms (1.0).
+    gap_cost : float
+        Cost of leaving the whole model unmatched (gaps cost this times their
+        share of the model's length) (0.5).
+    piece_cost : float
+        Fixed cost per contour used (0.01).
+    table_weight : float
+        Multiplier of the contour-vs-model table costs (3.0).
+    beam, per_end : int
+        Matches kept per model interval (32), at most ``per_end`` (3) of them
+        with the same image start (or end) endpoint.
+    max_gap : int or None
+        Longest gap inside an interval, in model segments (default ``m // 2``).
+    gap_beam : int
+        A composition across a gap combines only the ``gap_beam`` (8)
+        cheapest matches of each side.
+    min_coverage : float
+        Drop detections whose matched share of the model is below this (0.3).
+    min_size : float
+        Drop detections whose box is smaller than this on its longer side (24 px).
+    nms_iou : float
+        A detection is suppressed if its box has IoU above this with a better
+        one (0.3).
+    """
+
+    m: int = 30
+    threshold: float = 0.15
+    low: float | None = None
+    min_length: float = 15.0
+    max_turn: float = float(np.deg2rad(60.0))
+    turn_window: float = 5.0
+    smooth: float = 1.0
+    max_contours: int = 120
+    contour_spacing: float = 6.0
+    contour_min_points: int = 3
+    contour_max_points: int = 24
+    tau: float = 12.0
+    lam: float = 1.0
+    gap_cost: float = 0.5
+    piece_cost: float = 0.01
+    table_weight: float = 3.0
+    beam: int = 32
+    per_end: int = 3
+    max_gap: int | None = None
+    gap_beam: int = 8
+    min_coverage: float = 0.3
+    min_size: float = 24.0
+    nms_iou: float = 0.3
+
+    def as_dict(self) -> dict[str, Any]:
+        """All parameters as a JSON-friendly dict."""
+        return dataclasses.asdict(self)
+
+
+@dataclass
+class Detection:
+    """One detection of the model in an image.
+
+    Attributes
+    ----------
+    cost : float
+        Total matching cost (model-fraction units; lower is better).
+    score : float
+        ``-cost`` (higher is better), used to rank detections.
+    bbox : tuple of float
+        ``(x1, y1, x2, y2)`` in px: box of the matched image points and of the
+        gap model points mapped by the similarity fitted to the matched ones.
+    model_points : ndarray, shape (m, 2)
+        The model's stitching samples.
+    image_points : ndarray, shape (m, 2)
+        Where each model sample lands in the image (px).  Inside matched
+        pieces a model sample is placed on the contour at the same arclength
+        fraction as on the model subcurve; inside gaps it is the
+        similarity-mapped model point.
+    matched : ndarray, shape (m,), bool
+        Whether the sample lies on a matched piece (True) or in a gap.
+    gaps : list of (int, int, float)
+        Gaps as ``(start index, end index, share of model length)``; a gap
+        runs forward from ``start`` to ``end`` (model indices, cyclic).
+    coverage : float
+        Matched share of the model's (real) length, ``1 - sum of gap shares``.
+    pieces : list of dict
+        Matched contours in model order: ``contour`` (index into
+        ``DetectionRun.contours``), ``reversed``, ``model_start``,
+        ``model_len`` (segments), ``cost``.
+    """
+
+    cost: float
+    score: float
+    bbox: tuple[float, float, float, float]
+    model_points: NDArray[np.float64]
+    image_points: NDArray[np.float64]
+    matched: NDArray[np.bool_]
+    gaps: list[tuple[int, int, float]]
+    coverage: float
+    pieces: list[dict[str, Any]] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-friendly dict (lists of floats)."""
+        return {
+            "score": float(self.score),
+            "cost": float(self.cost),
+            "bbox": [float(v) for v in self.bbox],
+            "coverage": float(self.coverage),
+            "model_points": np.round(self.model_points, 3).tolist(),
+            "image_points": np.round(self.image_points, 3).tolist(),
+            "matched": [bool(v) for v in self.matched],
+            "gaps": [[int(a), int(b), float(f)] for a, b, f in self.gaps],
+            "pieces": [dict(p) for p in self.pieces],
+        }
+
+
+@dataclass
+class DetectionRun:
+    """Everything :func:`detect_detailed` computed (for pictures and timing).
+
+    Attributes
+    ----------
+    detections : list of Detection
+    edges : ndarray, shape (H, W)
+    contours : list of ndarray, each (n_i, 2)
+        Traced contours (1-px resampled polylines) used for matching.
+    model : DetectionModel
+    timings : dict of str to float
+        Seconds spent in ``edges``, ``contours``, ``tables``, ``stitch``,
+        ``select``.
+    params : DetectParams
+    """
+
+    detections: list[Detection]
+    edges: NDArray[np.float64]
+    contours: list[NDArray[np.float64]]
+    model: DetectionModel
+    timings: dict[str, float]
+    params: DetectParams
+
+
+def _box_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """IoU of one box ``a`` (4,) with boxes ``b`` (n, 4)."""
+    ix = np.clip(np.minimum(a[2], b[:, 2]) - np.maximum(a[0], b[:, 0]), 0, None)
+    iy = np.clip(np.minimum(a[3], b[:, 3]) - np.maximum(a[1], b[:, 1]), 0, None)
+    inter = ix * iy
+    area_a = max(a[2] - a[0], 0.0) * max(a[3] - a[1], 0.0)
+    area_b = np.clip(b[:, 2] - b[:, 0], 0, None) * np.clip(b[:, 3] - b[:, 1], 0, None)
+    return inter / np.maximum(area_a + area_b - inter, 1e-9)
+
+
+def _fit_similarity(src: NDArray, dst: NDArray) -> tuple[complex, complex]:
+    """Least-squares similarity ``dst ~ alpha * src + beta`` (complex numbers)."""
+    zs = src[:, 0] + 1j * src[:, 1]
+    zd = dst[:, 0] + 1j * dst[:, 1]
+    ms, md = zs.mean(), zd.mean()
+    a, b = zs - ms, zd - md
+    den = np.sum(np.abs(a) ** 2)
+    alpha = np.sum(np.conj(a) * b) / den if den > 1e-12 else 1.0 + 0j
+    return complex(alpha), complex(md - alpha * ms)
+
+
+def _reconstruct(
+    res: Any,
+    e: int,
+    total_cost: float,
+    model: DetectionModel,
+    dense: list[NDArray[np.float64]],
+    piece_costs: NDArray[np.float64],
+) -> Detection:
+    m = res.m
+    pieces = res.pieces(e)
+    pts = model.points
+    img = np.full((m, 2), np.nan)
+    matched = np.zeros(m, bool)
+    seg = np.hypot(*(np.roll(pts, -1, axis=0) - pts).T)
+    out_pieces = []
+    for d, a, L in pieces:
+        ci, rev = d // 2, bool(d % 2)
+        poly = dense[ci][::-1] if rev else dense[ci]
+        idx = (a + np.arange(L + 1)) % m
+        s = np.concatenate([[0.0], np.cumsum(seg[idx[:-1]])])
+        s = s / s[-1] if s[-1] > 0 else np.linspace(0, 1, L + 1)
+        pseg = np.hypot(*np.diff(poly, axis=0).T)
+        pc = np.concatenate([[0.0], np.cumsum(pseg)])
+        pc = pc / pc[-1] if pc[-1] > 0 else np.linspace(0, 1, len(poly))
+        img[idx, 0] = np.interp(s, pc, poly[:, 0])
+        img[idx, 1] = np.interp(s, pc, poly[:, 1])
+        matched[idx] = True
+        out_pieces.append(
+            {
+                "contour": int(ci),
+                "reversed": rev,
+                "model_start": int(a),
+                "model_len": int(L),
+                "cost": float(piece_costs[d, a, L]),
+            }
+        )
+    # gap segments: model segment i (i -> i+1) is in a gap unless inside a piece
+    seg_matched = np.zeros(m, bool)
+    for _d, a, L in pieces:
+        seg_matched[(a + np.arange(L)) % m] = True
+    gaps: list[tuple[int, int, float]] = []
+    if not seg_matched.all():
+        start = int(np.flatnonzero(seg_matched)[-1] + 1) % m if seg_matched.any() else 0
+        i = 0
+        while i < m:
+            j = (start + i) % m
+            if not seg_matched[j]:
+                g0 = j
+                share = 0.0
+                while i < m and not seg_matched[(start + i) % m]:
+                    share += float(model.gap_weight[(start + i) % m])
+                    i += 1
+                gaps.append((g0, (start + i) % m, share))
+            else:
+                i += 1
+    alpha, beta = _fit_similarity(pts[matched], img[matched])
+    zg = alpha * (pts[~matched, 0] + 1j * pts[~matched, 1]) + beta
+    img[~matched, 0] = zg.real
+    img[~matched, 1] = zg.imag
+    box = (
+        float(img[:, 0].min()),
+        float(img[:, 1].min()),
+        float(img[:, 0].max()),
+        float(img[:, 1].max()),
+    )
+    coverage = 1.0 - sum(g[2] for g in gaps)
+    return Detection(
+        cost=float(total_cost),
+        score=-float(total_cost),
+        bbox=box,
+        model_points=pts.copy(),
+        image_points=img,
+        matched=matched,
+        gaps=gaps,
+        coverage=float(coverage),
+        pieces=out_pieces,
+    )
+
+
+def _as_image(image: ArrayLike | str | os.PathLike[str] | None) -> NDArray | None:
+    if image is None:
+        return None
+    if isinstance(image, (str, os.PathLike)):
+        return load_image(image)
+    return np.asarray(image)
+
+
+def detect_detailed(
+    model: DetectionModel | ArrayLike | str | os.PathLike[str],
+    image: ArrayLike | str | os.PathLike[str] | None,
+    *,
+    edges: ArrayLike | str | os.PathLike[str] | None = None,
+    k: int = 5,
+    params: DetectParams | None = None,
+    contours: list[ArrayLike] | None = None,
+    **overrides: Any,
+) -> DetectionRun:
+    """Like :func:`detect`, but also return edges, contours and timings.
+
+    ``contours`` (list of (n_i, 2) open polylines in px) replaces edge
+    detection and tracing when given; ``image`` and ``edges`` may then be None.
+    """
+    p = params or DetectParams()
+    if overrides:
+        p = dataclasses.replace(p, **overrides)
+    if k < 1:
+        raise ShapeTreeError(f"k must be >= 1, got {k}")
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    if isinstance(model, DetectionModel):
+        mdl = model  # its own sampling wins over ``params.m``
+        p = dataclasses.replace(p, m=len(model.points))
+    else:
+        mdl = load_model(model, m=p.m)
+    img = _as_image(image)
+    if contours is not None:
+        e = np.zeros(img.shape[:2]) if img is not None else np.zeros((0, 0))
+    elif edges is None:
+        if img is None:
+            raise ImageError("detect needs an image or an edge map")
+        e = edge_map(img)
+    elif isinstance(edges, (str, os.PathLike)):
+        e = load_edges(edges)
+    else:
+        e = np.clip(np.asarray(edges, dtype=np.float64), 0.0, 1.0)
+    if e.ndim != 2:
+        raise ImageError(f"edge map must be 2-D, got shape {e.shape}")
+    if contours is None and img is not None and img.shape[:2] != e.shape:
+        raise ImageError(f"edge map shape {e.shape} differs from image shape {img.shape[:2]}")
+    timings["edges"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    if contours is not None:
+        dense = []
+        for c in contours:
+            c = np.asarray(c, dtype=np.float64)
+            if c.ndim != 2 or c.shape[1] != 2 or len(c) < 2 or not np.all(np.isfinite(c)):
+                raise ShapeTreeError("each contour must be a finite (n, 2) array with n >= 2")
+            length = polyline_length(c)
+            if length > 0:
+                dense.append(resample_polyline(c, max(2, int(np.ceil(length)) + 1)))
+    else:
+        traced: list[TracedContour] = trace_contours_detailed(
+            e,
+            threshold=p.threshold,
+            low=p.low,
+            min_length=p.min_length,
+            max_turn=p.max_turn,
+            turn_window=p.turn_window,
+            smooth=p.smooth,
+        )[: p.max_contours]
+        dense = [t.points for t in traced]
+    timings["contours"] = time.perf_counter() - t0
+    run = DetectionRun([], e, dense, mdl, timings, p)
+    if not dense:
+        timings["tables"] = timings["stitch"] = timings["select"] = 0.0
+        return run
+
+    t0 = time.perf_counter()
+    sampled = []
+    for c in dense:
+        n = int(round(polyline_length(c) / p.contour_spacing)) + 1
+        n = int(np.clip(n, p.contour_min_points, p.contour_max_points))
+        sampled.append(resample_polyline(c, n))
+    tables = contour_tables(sampled, mdl.points)
+    timings["tables"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    m = p.m
+    mpts = mdl.points
+    seg = np.hypot(*(np.roll(mpts, -1, axis=0) - mpts).T)
+    cum = np.concatenate([[0.0], np.cumsum(np.concatenate([seg, seg]))])
+    idx = np.arange(m)[:, None] + np.arange(m)[None, :]
+    frac = (cum[idx] - cum[np.arange(m)][:, None]) / seg.sum()
+    with np.errstate(invalid="ignore"):
+        base = p.table_weight * frac[None] * tables + p.piece_cost
+    base[:, :, 0] = np.inf
+    nc = len(dense)
+    ends = np.empty((2 * nc, 2))
+    ends[0::2] = [c[0] for c in dense]
+    ends[1::2] = [c[-1] for c in dense]
+    piece_p = np.empty(2 * nc, np.int64)
+    piece_q = np.empty(2 * nc, np.int64)
+    piece_p[0::2], piece_q[0::2] = 2 * np.arange(nc), 2 * np.arange(nc) + 1
+    piece_p[1::2], piece_q[1::2] = 2 * np.arange(nc) + 1, 2 * np.arange(nc)
+    boxes = np.array([[c[:, 0].min(), c[:, 1].min(), c[:, 0].max(), c[:, 1].max()] for c in dense])
+    res = run_stitch(
+        mpts,
+        mdl.gap_weight,
+        base,
+        piece_p,
+        piece_q,
+        np.repeat(np.arange(nc), 2),
+        np.repeat(boxes, 2, axis=0),
+        ends,
+        tau=p.tau,
+        lam=p.lam,
+        gap_cost=p.gap_cost,
+        beam=p.beam,
+        per_end=p.per_end,
+        max_gap=p.max_gap if p.max_gap is not None else m // 2,
+        gap_beam=p.gap_beam,
+    )
+    timings["stitch"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ids, costs = complete_matches(res)
+    kept: list[Detection] = []
+    kept_boxes = np.zeros((0, 4))
+    for e_id, c in zip(ids, costs, strict=True):
+        box = res.box[e_id]
+        if max(box[2] - box[0], box[3] - box[1]) < p.min_size:
+            continue
+        if len(kept) and np.any(_box_iou(box, kept_boxes) > p.nms_iou):
+            continue
+        det = _reconstruct(res, int(e_id), float(c), mdl, dense, base)
+        if det.coverage < p.min_coverage:
+            continue
+        b = np.asarray(det.bbox)
+        if max(b[2] - b[0], b[3] - b[1]) < p.min_size:
+            continue
+        if len(kept) and np.any(_box_iou(b, kept_boxes) > p.nms_iou):
+            continue
+        kept.append(det)
+        kept_boxes = np.vstack([kept_boxes, b])
+        if len(kept) >= k:
+            break
+    timings["select"] = time.perf_counter() - t0
+    run.detections = kept
+    return run
+
+
+def detect(
+    model: DetectionModel | ArrayLike | str | os.PathLike[str],
+    image: ArrayLike | str | os.PathLike[str] | None,
+    *,
+    edges: ArrayLike | str | os.PathLike[str] | None = None,
+    k: int = 5,
+    params: DetectParams | None = None,
+    contours: list[ArrayLike] | None = None,
+    **overrides: Any,
+) -> list[Detection]:
+    """Find the ``k`` best non-overlapping matches of a deformable model in an image.
+
+    Stages (paper §4): soft edge map -> contours -> contour-vs-model tables
+    (§3 kernel) -> stitching DP with gaps -> complete matches, ranked by cost,
+    greedy non-maximum suppression on boxes.
+
+    Parameters
+    ----------
+    model : DetectionModel, path-like or array_like, shape (n, 2)
+        The model: a :class:`DetectionModel`, an outline drawing or point file
+        (see :func:`load_model`), or closed-curve points.
+    image : array_like, shape (H, W) or (H, W, 3), path-like, or None
+        The image (may be None when ``edges`` is given).
+    edges : array_like, shape (H, W), path-like, or None
+        Soft edge map in ``[0, 1]`` (e.g. an ETHZ Pb map); computed with
+        :func:`edge_map` when None.
+    k : int
+        Maximum number of detections returned (default 5).
+    params : DetectParams or None
+        Parameters; keyword ``overrides`` replace single fields.
+    contours : list of array_like, each shape (n_i, 2), or None
+        Use these open image contours (px) instead of tracing the edge map.
+
+    Returns
+    -------
+    list of Detection
+        At most ``k``, best (lowest cost) first; boxes overlap by at most
+        ``nms_iou`` IoU.
+
+    Raises
+    ------
+    ImageError
+        For unreadable or mismatched image / edge inputs.
+    ShapeTreeError
+        For bad parameters or models.
+    """
+    return detect_detailed(
+        model, image, edges=edges, k=k, params=params, contours=contours, **overrides
+    ).detections

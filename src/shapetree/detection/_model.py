@@ -1,0 +1,270 @@
+"""Detection models: curves from outline drawings or point files, sampled for stitching."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import ndimage
+
+from shapetree._errors import ImageError, ShapeTreeError
+
+__all__ = ["DetectionModel", "outline_from_image", "load_model", "make_model"]
+
+_IMAGE_EXT = {".png", ".tif", ".tiff", ".pgm", ".pbm", ".bmp", ".jpg", ".jpeg", ".gif", ".ppm"}
+
+
+@dataclass(frozen=True)
+class DetectionModel:
+    """A model curve prepared for detection.
+
+    Attributes
+    ----------
+    curve : ndarray, shape (n, 2)
+        The model curve as given (``x, y``), without a repeated end point.
+    closed : bool
+        Whether the given curve is closed.  An open curve is closed with its
+        end-to-start chord, on which gaps are free.
+    points : ndarray, shape (m, 2)
+        Closed curve (chord included for open models) resampled uniformly in
+        arclength to ``m`` points: the stitching / table samples.
+    gap_weight : ndarray, shape (m,)
+        Gap cost weight of segment ``i`` (from ``points[i]`` to
+        ``points[(i+1) % m]``): its share of the real curve's length (0 for
+        segments on the artificial chord); sums to 1.
+    name : str
+        Label (file stem).
+    """
+
+    curve: NDArray[np.float64]
+    closed: bool
+    points: NDArray[np.float64]
+    gap_weight: NDArray[np.float64]
+    name: str = "model"
+
+
+def _read_grey(path: Path) -> NDArray[np.float64]:
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("L"), dtype=np.float64)
+    except FileNotFoundError as exc:
+        raise ImageError(f"model image not found: {path}") from exc
+    except (UnidentifiedImageError, OSError) as exc:
+        raise ImageError(f"cannot read model image {path}: {exc}") from exc
+
+
+def outline_from_image(
+    image: ArrayLike | str | os.PathLike[str], *, name: str = "model image"
+) -> tuple[NDArray[np.float64], bool]:
+    """Trace a drawn 1-px outline (dark on light, or light on dark) into a curve.
+
+    The largest 8-connected group of ink pixels is used.  If filling its holes
+    adds area, the outline is closed and the outer boundary of the filled
+    region is returned (sub-pixel, from marching squares); otherwise the
+    outline is open (e.g. the ETHZ giraffe) and the longest path through its
+    skeleton is returned, end to end.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W), or path-like
+        Outline drawing (bool, or grey values; ink is the minority colour).
+    name : str
+        Used in error messages.
+
+    Returns
+    -------
+    points : ndarray, shape (n, 2), float64
+        ``(x=col, y=row)`` in pixels.  A closed curve is counter-clockwise in
+        ``(x, y)`` (positive shoelace area) and does not repeat its first point.
+    closed : bool
+
+    Raises
+    ------
+    ImageError
+        If the drawing has no ink or the outline is too small.
+    """
+    if isinstance(image, (str, os.PathLike)):
+        name = str(image)
+        arr = _read_grey(Path(image))
+    else:
+        arr = np.asarray(image, dtype=np.float64)
+    if arr.ndim == 3:
+        arr = arr[..., :3].mean(axis=2)
+    if arr.ndim != 2 or arr.size == 0:
+        raise ImageError(f"{name}: model image must be a 2-D image")
+    lo, hi = float(arr.min()), float(arr.max())
+    if hi - lo <= 0:
+        raise ImageError(f"{name}: model image is blank")
+    dark = arr < (lo + hi) / 2
+    ink = dark if dark.sum() <= (~dark).sum() else ~dark
+    lab, n = ndimage.label(ink, structure=np.ones((3, 3)))
+    if n == 0:
+        raise ImageError(f"{name}: model image has no outline pixels")
+    sizes = ndimage.sum(np.ones_like(lab), lab, index=np.arange(1, n + 1))
+    comp = lab == (1 + int(np.argmax(sizes)))
+    if comp.sum() < 8:
+        raise ImageError(f"{name}: outline is too small ({int(comp.sum())} pixels)")
+    filled = ndimage.binary_fill_holes(comp)
+    if filled.sum() > comp.sum() * 1.2 + 10:
+        from skimage.measure import find_contours
+
+        padded = np.pad(filled.astype(np.float64), 1)
+        cs = find_contours(padded, 0.5)
+        c = max(cs, key=len)
+        pts = c[:, ::-1] - 1.0  # (row, col) -> (x, y), undo padding
+        if np.allclose(pts[0], pts[-1]):
+            pts = pts[:-1]
+        x, y = pts[:, 0], pts[:, 1]
+        area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+        if area < 0:
+            pts = pts[::-1]
+        return np.ascontiguousarray(pts), True
+    # open outline: longest geodesic path through the skeleton
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, dijkstra
+    from skimage.morphology import skeletonize
+
+    sk = skeletonize(comp)
+    rc = np.argwhere(sk)
+    index = -np.ones(sk.shape, np.int64)
+    index[rc[:, 0], rc[:, 1]] = np.arange(len(rc))
+    rows, cols, wts = [], [], []
+    h, w = sk.shape
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        r2, c2 = rc[:, 0] + dr, rc[:, 1] + dc
+        ok = (r2 >= 0) & (r2 < h) & (c2 >= 0) & (c2 < w)
+        j = np.full(len(rc), -1)
+        j[ok] = index[r2[ok], c2[ok]]
+        sel = j >= 0
+        rows.append(np.flatnonzero(sel))
+        cols.append(j[sel])
+        wts.append(np.full(sel.sum(), np.hypot(dr, dc)))
+    g = coo_matrix(
+        (np.concatenate(wts), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(len(rc), len(rc)),
+    ).tocsr()
+    g = g + g.T
+    order = breadth_first_order(g, 0, directed=False, return_predecessors=False)
+    d0 = dijkstra(g, indices=int(order[0]))
+    d0[~np.isfinite(d0)] = -1
+    s = int(np.argmax(d0))
+    ds, pred = dijkstra(g, indices=s, return_predecessors=True)
+    ds[~np.isfinite(ds)] = -1
+    t = int(np.argmax(ds))
+    path = [t]
+    while path[-1] != s:
+        path.append(int(pred[path[-1]]))
+    pts = rc[np.asarray(path[::-1])][:, ::-1].astype(np.float64)
+    from scipy.ndimage import gaussian_filter1d
+
+    sm = gaussian_filter1d(pts, 1.0, axis=0, mode="nearest")
+    sm[0], sm[-1] = pts[0], pts[-1]
+    return np.ascontiguousarray(sm), False
+
+
+def _resample_closed(pts: NDArray[np.float64], m: int) -> tuple[NDArray, NDArray]:
+    """Uniform resampling of a closed polygon; also returns the sample arclength positions."""
+    closed = np.vstack([pts, pts[:1]])
+    seg = np.hypot(*np.diff(closed, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    t = np.linspace(0.0, cum[-1], m, endpoint=False)
+    out = np.column_stack([np.interp(t, cum, closed[:, 0]), np.interp(t, cum, closed[:, 1])])
+    return out, t
+
+
+def make_model(
+    curve: ArrayLike, *, closed: bool = True, m: int = 30, name: str = "model"
+) -> DetectionModel:
+    """Prepare a model curve for detection.
+
+    Parameters
+    ----------
+    curve : array_like, shape (n, 2)
+        Model curve ``(x, y)`` (any units; only its shape matters).
+    closed : bool
+        Whether the curve is closed.  An open curve is closed by the chord from
+        its last point back to its first, and gaps on that chord cost nothing.
+    m : int
+        Number of samples for the contour tables and stitching (default 30).
+    name : str
+        Label.
+
+    Returns
+    -------
+    DetectionModel
+
+    Raises
+    ------
+    ShapeTreeError
+        If the curve is not an ``(n, 2)`` finite array with ``n >= 3`` and
+        non-zero length, or ``m < 6``.
+    """
+    pts = np.asarray(curve, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3 or not np.all(np.isfinite(pts)):
+        raise ShapeTreeError(f"{name}: model curve must be a finite (n, 2) array with n >= 3")
+    if m < 6:
+        raise ShapeTreeError(f"m must be >= 6, got {m}")
+    if closed and np.allclose(pts[0], pts[-1]):
+        pts = pts[:-1]
+    seg = np.hypot(*np.diff(np.vstack([pts, pts[:1]]), axis=0).T)
+    total = seg.sum()
+    if total <= 0:
+        raise ShapeTreeError(f"{name}: model curve has zero length")
+    samples, t = _resample_closed(pts, m)
+    if closed:
+        gw = np.full(m, 1.0 / m)
+    else:
+        real_len = total - seg[-1]
+        t_next = np.append(t[1:], total)
+        # share of each sample segment that lies on the real (non-chord) part
+        on_real = np.clip(np.minimum(t_next, real_len) - t, 0.0, None)
+        gw = on_real / max(real_len, 1e-12)
+    return DetectionModel(
+        curve=pts, closed=bool(closed), points=samples, gap_weight=gw / gw.sum(), name=name
+    )
+
+
+def load_model(
+    source: str | os.PathLike[str] | ArrayLike,
+    *,
+    m: int = 30,
+    closed: bool | None = None,
+) -> DetectionModel:
+    """Load a detection model from an outline drawing, a point file or an array.
+
+    Parameters
+    ----------
+    source : path-like or array_like, shape (n, 2)
+        An image file (``.png``, ``.tif``, ``.pgm``, ...) holding a drawn
+        outline (see :func:`outline_from_image`), a point file readable by
+        :func:`shapetree.curves.load_points`, or the points themselves.
+    m : int
+        Number of stitching samples (default 30).
+    closed : bool or None
+        Override closedness (default: detected for drawings, True otherwise).
+
+    Returns
+    -------
+    DetectionModel
+    """
+    if isinstance(source, DetectionModel):
+        return source
+    if isinstance(source, (str, os.PathLike)):
+        p = Path(source)
+        if p.suffix.lower() in _IMAGE_EXT:
+            pts, is_closed = outline_from_image(p)
+        else:
+            from shapetree.curves import load_points
+
+            pts, is_closed = np.asarray(load_points(p), dtype=np.float64), True
+        name = p.stem
+    else:
+        pts, is_closed, name = np.asarray(source, dtype=np.float64), True, "model"
+    if closed is not None:
+        is_closed = bool(closed)
+    return make_model(pts, closed=is_closed, m=m, name=name)

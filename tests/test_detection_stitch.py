@@ -1,0 +1,133 @@
+"""The stitching DP on synthetic scenes drawn by the test, where the answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from shapetree import ShapeTreeError
+from shapetree.detection import Detection, detect, make_model
+from shapetree.detection._stitch import _dif
+
+
+def _shape(t: np.ndarray) -> np.ndarray:
+    r = 1 + 0.3 * np.cos(3 * t) + 0.15 * np.sin(2 * t)  # no symmetry
+    return np.c_[r * np.cos(t), r * np.sin(t)]
+
+
+def _place(p: np.ndarray, ang: float, scale: float, shift: tuple[float, float]) -> np.ndarray:
+    rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+    return p @ rot.T * scale + np.asarray(shift)
+
+
+def _arc(a: float, b: float, n: int = 300) -> np.ndarray:
+    return np.linspace(a, b, n)
+
+
+def _scene(seed: int, removed: list[tuple[float, float]], n_clutter: int = 20):
+    cuts = sorted({0.3, 2.5, 5.2, *[x for ab in removed for x in ab]})
+    bounds = [*cuts, cuts[0] + 2 * np.pi]
+    ang, scale, shift = np.deg2rad(20.0), 60.0, (200.0, 150.0)
+    pieces = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if any(abs(a - ra) < 1e-9 and abs(b - rb) < 1e-9 for ra, rb in removed):
+            continue
+        pieces.append(_place(_shape(_arc(a, b)), ang, scale, shift))
+    rng = np.random.default_rng(seed)
+    clutter = []
+    for i in range(n_clutter):
+        c = rng.uniform([0, 0], [420, 320])
+        th, length = rng.uniform(0, np.pi), rng.uniform(20, 80)
+        if i % 2 == 0:
+            s = np.linspace(0, 1, 30)[:, None]
+            clutter.append(c + s * length * np.array([np.cos(th), np.sin(th)]))
+        else:
+            u = np.linspace(0, rng.uniform(1, 2.5), 30)
+            clutter.append(c + length / 2 * np.c_[np.cos(u + th), np.sin(u + th)])
+    conts = pieces + clutter
+    order = rng.permutation(len(conts))
+    conts = [conts[i] if rng.random() < 0.5 else conts[i][::-1] for i in order]
+    full = _place(_shape(np.linspace(0, 2 * np.pi, 2000)), ang, scale, shift)
+    box = (full[:, 0].min(), full[:, 1].min(), full[:, 0].max(), full[:, 1].max())
+    return conts, box
+
+
+def _iou(a, b) -> float:
+    ix = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+    iy = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+    inter = ix * iy
+    area = lambda r: (r[2] - r[0]) * (r[3] - r[1])  # noqa: E731
+    return inter / (area(a) + area(b) - inter)
+
+
+MODEL_T = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_stitch_finds_broken_shape_with_gaps(seed: int) -> None:
+    removed = [(1.0, 1.6), (3.5, 4.2)]
+    conts, true_box = _scene(seed, removed)
+    model = make_model(_shape(MODEL_T), m=30)
+    dets = detect(model, None, contours=conts, k=3)
+    assert dets and isinstance(dets[0], Detection)
+    best = dets[0]
+    assert _iou(best.bbox, true_box) > 0.7
+    # gaps are where the pieces are missing: every removed arc holds a gap,
+    # and every gap lies in a removed arc (angles of the model samples)
+    theta = np.array([MODEL_T[np.argmin(np.hypot(*(_shape(MODEL_T) - p).T))] for p in model.points])
+    gap_mid = []
+    for g0, g1, share in best.gaps:
+        assert share > 0
+        idx = (g0 + np.arange((g1 - g0) % 30 + 1)) % 30
+        gap_mid.append(np.mean(np.unwrap(theta[idx])) % (2 * np.pi))
+    assert len(best.gaps) == len(removed)
+    for a, b in removed:
+        assert any(a - 0.2 <= gm <= b + 0.2 for gm in gap_mid)
+    assert 0.7 < best.coverage < 0.95
+    # matched image points lie on the true outline
+    full = _place(_shape(np.linspace(0, 2 * np.pi, 4000)), np.deg2rad(20.0), 60.0, (200.0, 150.0))
+    ip = best.image_points[best.matched]
+    dist = np.min(np.hypot(ip[:, None, 0] - full[None, :, 0], ip[:, None, 1] - full[None, :, 1]), 1)
+    assert np.median(dist) < 3.0
+    # other detections do not overlap it much
+    for d in dets[1:]:
+        assert _iou(d.bbox, best.bbox) <= 0.3 + 1e-9
+        assert d.cost >= best.cost
+
+
+def test_complete_shape_without_gaps_and_json() -> None:
+    conts, true_box = _scene(3, removed=[], n_clutter=10)
+    dets = detect(make_model(_shape(MODEL_T), m=24), None, contours=conts, k=2)
+    best = dets[0]
+    assert _iou(best.bbox, true_box) > 0.8
+    assert best.gaps == [] and best.coverage == pytest.approx(1.0)
+    js = best.to_json()
+    assert set(js) >= {"score", "bbox", "model_points", "image_points", "gaps", "matched"}
+    assert len(js["image_points"]) == 24 and js["score"] == pytest.approx(-best.cost)
+
+
+def test_clutter_only_gives_weak_or_no_detections() -> None:
+    conts, _ = _scene(5, removed=[(0.3, 2.5), (2.5, 5.2)], n_clutter=15)  # one arc of the object
+    dets = detect(make_model(_shape(MODEL_T), m=24), None, contours=conts[:15], k=3)
+    full, _ = _scene(5, removed=[(1.0, 1.6)], n_clutter=15)
+    good = detect(make_model(_shape(MODEL_T), m=24), None, contours=full, k=1)
+    assert good and all(d.cost > good[0].cost for d in dets)
+
+
+def test_triangle_dif_properties() -> None:
+    z = (0j, 1 + 0j, 0.3 + 0.8j)
+    w = tuple(2.0 * np.exp(0.7j) * v + (3 - 1j) for v in z)  # similar copy
+    assert _dif(*z, *w) == pytest.approx(0.0, abs=1e-12)
+    assert 0.0 < _dif(*z, 0j, 1 + 0j, 0.5 - 0.1j) <= 1.0
+    assert _dif(*z, 1j, 1j, 1j) == 1.0  # degenerate
+
+
+def test_bad_inputs() -> None:
+    model = make_model(_shape(MODEL_T), m=20)
+    with pytest.raises(ShapeTreeError):
+        detect(model, None, contours=[np.zeros((3, 3))])
+    with pytest.raises(ShapeTreeError):
+        detect(model, None, contours=[np.ones((5, 2))], k=0)
+    with pytest.raises(ShapeTreeError):
+        make_model(np.zeros((2, 2)))
+    assert detect(model, None, contours=[]) == []
