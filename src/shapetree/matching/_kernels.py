@@ -53,6 +53,8 @@ def fill_tables(
     blen: np.ndarray,
     cyclic: bool,
     occlusion: float,
+    lmin: np.ndarray,
+    lmax: np.ndarray,
     tl: np.ndarray,
     er: np.ndarray,
 ) -> None:
@@ -77,6 +79,9 @@ def fill_tables(
         Target subcurves wrap around.
     occlusion : float
         Replacement cost factor κ (``<= 0`` disables replacement).
+    lmin, lmax : int64 (K + S,)
+        Band of target lengths each table may use (pruned mode); ``1`` and ``m - 1``
+        for exact matching. Entries outside the band are ``+inf``.
     tl : float64 (K + S, m, m)
         Output, by start.
     er : float64 (K + S, m, 2 m)
@@ -97,11 +102,16 @@ def fill_tables(
         else:
             lv = lam[v]
             la = alen[v]
+        lo = lmin[tab]
+        hi = lmax[tab]
         for length in range(1, m):
             ns = m if cyclic else m - length
             if ns <= 0:
                 break
-            if is_seg:
+            if length < lo or length > hi:
+                for s in range(ns):
+                    best[s] = np.inf
+            elif is_seg:
                 grow = g[length]
                 for s in range(ns):
                     best[s] = lv * grow[s]
@@ -117,7 +127,10 @@ def fill_tables(
                 rt = right_tab[v]
                 for s in range(ns):
                     best[s] = np.inf
-                for k in range(1, length):
+                # splits k whose halves both fall inside their children's bands
+                k0 = max(1, lmin[lt], length - lmax[rt])
+                k1 = min(length - 1, lmax[lt], length - lmin[rt])
+                for k in range(k0, k1 + 1):
                     lrow = tl[lt, k]
                     rrow = er[rt, length - k, length:]
                     zz1 = z1[length, k]
@@ -129,7 +142,7 @@ def fill_tables(
                         c = lrow[s] + rrow[s] + lv * (1.0 - ip_re * ip_re - ip_im * ip_im)
                         b = best[s]
                         best[s] = c if c < b else b
-            if occl:
+            if occl and lo <= length <= hi:
                 brow = blen[length]
                 for s in range(ns):
                     r = occlusion * lv * (la + brow[s])

@@ -31,14 +31,23 @@ class MatchParams:
         Replacement-cost factor κ: every ψ(A', B') is bounded above by
         ``κ λ_{A'} (|A'| + |B'|)``, lengths relative to the curves' total lengths
         (§3, occlusion). ``None`` disables replacement.
+    band : float or None
+        Pruned mode (not in the paper): a subcurve of ``A`` spanning ``k`` segments may
+        only map to target subcurves of ``L`` segments with
+        ``k ρ / band - 1 <= L <= k ρ band + 1`` where ``ρ = m / n`` (``(m-1)/(n-1)`` for
+        open curves), i.e. stretch by at most a factor ``band``. ``None`` (default):
+        exact matching over all ``L``.
     """
 
     occlusion: float | None = None
+    band: float | None = None
 
     def __post_init__(self) -> None:
         occ = self.occlusion
         if occ is not None and not (np.isfinite(occ) and occ > 0):
             raise ShapeTreeError(f"occlusion must be a positive number or None, got {occ}")
+        if self.band is not None and not (np.isfinite(self.band) and self.band >= 1):
+            raise ShapeTreeError(f"band must be a number >= 1 or None, got {self.band}")
 
     @property
     def kernel_occlusion(self) -> float:
@@ -100,8 +109,23 @@ def _interp(pts: np.ndarray, pos: np.ndarray, closed: bool) -> np.ndarray:
     return (1 - t) * pts[i0] + t * pts[i1]
 
 
+def _bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Allowed target lengths ``[lmin, lmax]`` of every table (nodes first, then segments)."""
+    tree = td.tree
+    k_nodes = tree.end - tree.start
+    k = np.concatenate([k_nodes, np.ones(td.seg_lam.shape[0], dtype=np.int64)])
+    if band is None:
+        return np.ones_like(k), np.full_like(k, m - 1)
+    n_seg = tree.unrolled.shape[0] - 1
+    rho = m / n_seg if tree.closed else (m - 1) / n_seg
+    lmin = np.maximum(np.floor(k * rho / band) - 1, 1).astype(np.int64)
+    lmax = np.minimum(np.ceil(k * rho * band) + 1, m - 1).astype(np.int64)
+    return lmin, lmax
+
+
 def _fill(td: TreeData, target: Target, params: MatchParams) -> tuple[np.ndarray, np.ndarray]:
     m = target.n_points
+    lmin, lmax = _bands(td, m, params.band)
     s_tab = np.empty((td.n_tables, m, m))
     er_tab = np.empty((td.n_tables, m, 2 * m))
     fill_tables(
@@ -122,6 +146,8 @@ def _fill(td: TreeData, target: Target, params: MatchParams) -> tuple[np.ndarray
         target.blen,
         target.closed,
         params.kernel_occlusion,
+        lmin,
+        lmax,
         s_tab,
         er_tab,
     )
