@@ -1,0 +1,179 @@
+"""Distance-matrix engine: exactness, block cache, corruption, resumption after SIGKILL."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shapetree import ShapeTreeError
+from shapetree.curves import resample
+from shapetree.matching import MatchParams, match_cost, prepare_model, prepare_target
+from shapetree.retrieval import directed_costs, distance_matrix, mirror_curve
+from shapetree.retrieval._engine import read_block, write_block
+
+
+def _shapes(k: int = 6, n: int = 60, seed: int = 0) -> list[np.ndarray]:
+    """Smooth random star-shaped closed curves, counter-clockwise."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    out = []
+    for _ in range(k):
+        r = 1 + sum(rng.uniform(-0.25, 0.25) * np.cos(f * t + rng.uniform(0, 6)) for f in (2, 3, 5))
+        out.append(np.c_[r * np.cos(t) * rng.uniform(0.6, 1.4), r * np.sin(t)])
+    return out
+
+
+def test_mirror_curve_keeps_orientation() -> None:
+    from shapetree.curves import signed_area
+
+    c = _shapes(1)[0]
+    m = mirror_curve(c)
+    assert signed_area(c) > 0 and signed_area(m) == pytest.approx(signed_area(c))
+    assert np.allclose(mirror_curve(m), c)
+
+
+def test_matrix_equals_direct_match_cost() -> None:
+    curves = _shapes(5)
+    n, occ, nt = 20, 1.0, 2
+    rs = [resample(c, n, closed=True) for c in curves]
+    c = directed_costs(
+        curves,
+        n_points=n,
+        occlusion=occ,
+        n_trees=nt,
+        mirror=True,
+        workers=2,
+        block=2,
+        progress=False,
+    )
+    assert c.shape == (2, 5, 5)
+    mp = MatchParams(occlusion=occ)
+    for i, a in enumerate(rs):
+        for j, b in enumerate(rs):
+            t = prepare_target(b)
+            assert c[0, i, j] == match_cost(prepare_model(a, n_trees=nt), t, mp)
+            assert c[1, i, j] == match_cost(prepare_model(mirror_curve(a), n_trees=nt), t, mp)
+    d = distance_matrix(
+        curves,
+        n_points=n,
+        occlusion=occ,
+        n_trees=nt,
+        mirror=True,
+        symmetrize="min",
+        workers=1,
+        progress=False,
+    )
+    assert np.array_equal(d, np.minimum(c.min(0), c.min(0).T))
+    d_none = distance_matrix(
+        curves, n_points=n, occlusion=occ, n_trees=nt, symmetrize=None, workers=1, progress=False
+    )
+    assert np.array_equal(d_none, c[0])
+    assert np.allclose(np.diag(d_none), 0.0)
+
+
+def test_rectangular_variant() -> None:
+    curves = _shapes(5)
+    q, db = curves[:2], curves[2:]
+    full = directed_costs(curves, n_points=16, workers=1, progress=False)[0]
+    fwd = distance_matrix(q, db, n_points=16, symmetrize=None, progress=False)
+    assert np.array_equal(fwd, full[:2, 2:])
+    mean = distance_matrix(q, db, n_points=16, symmetrize="mean", progress=False)
+    assert np.allclose(mean, 0.5 * (full[:2, 2:] + full[2:, :2].T))
+    rev = distance_matrix(q, db, n_points=16, symmetrize="reverse", progress=False)
+    assert np.array_equal(rev, full[2:, :2].T)
+
+
+def test_bad_parameters() -> None:
+    curves = _shapes(2)
+    with pytest.raises(ShapeTreeError):
+        distance_matrix(curves, symmetrize="median", progress=False)
+    with pytest.raises(ShapeTreeError):
+        distance_matrix(curves, occlusion=-1.0, progress=False)
+    with pytest.raises(ShapeTreeError):
+        distance_matrix(curves, n_trees=0, progress=False)
+
+
+def test_cache_reuse_key_and_corruption(tmp_path: Path) -> None:
+    curves = _shapes(6)
+    kw = dict(n_points=16, block=2, progress=False, workers=2)
+    ref = directed_costs(curves, **kw)
+    c1 = directed_costs(curves, cache_dir=tmp_path, **kw)
+    assert np.array_equal(c1, ref)
+    (folder,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    blocks = sorted(folder.glob("*.blk"))
+    assert len(blocks) == 3 and (folder / "params.json").is_file()
+    # second run reads the blocks (poison one value *with* a valid checksum to prove it)
+    raw = blocks[0].read_bytes()
+    hdr = json.loads(raw[raw.index(b"{") : raw.index(b"}") + 1])
+    arr = read_block(blocks[0], {"key": hdr["key"]})
+    arr[0, 0, 1] = 123.0
+    write_block(blocks[0], arr, {"key": hdr["key"], "rows": hdr["rows"]})
+    assert directed_costs(curves, cache_dir=tmp_path, **kw)[0, 0, 1] == 123.0
+    # flip a payload byte: detected (checksum), recomputed, rewritten
+    raw = bytearray(blocks[1].read_bytes())
+    raw[-3] ^= 0xFF
+    blocks[1].write_bytes(bytes(raw))
+    # truncate another one
+    blocks[2].write_bytes(blocks[2].read_bytes()[:40])
+    with pytest.warns(UserWarning, match="damaged"):
+        c2 = directed_costs(curves, cache_dir=tmp_path, **kw)
+    assert np.array_equal(c2[:, 2:], ref[:, 2:])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # blocks were rewritten: no more warnings
+        directed_costs(curves, cache_dir=tmp_path, **kw)
+    # a different parameter is a different key (new folder)
+    directed_costs(curves, cache_dir=tmp_path, **dict(kw, occlusion=2.0))
+    assert len([p for p in tmp_path.iterdir() if p.is_dir()]) == 2
+
+
+_CHILD = textwrap.dedent(
+    """
+    import sys
+    import numpy as np
+    sys.path.insert(0, {tests!r})
+    from test_retrieval_engine import _shapes
+    from shapetree.retrieval import distance_matrix
+    d = distance_matrix(_shapes(24, seed=5), n_points=36, mirror=True, block=1, workers=2,
+                        cache_dir={cache!r}, progress=False)
+    np.save({out!r}, d)
+    """
+)
+
+
+def test_sigkill_midway_then_resume(tmp_path: Path) -> None:
+    cache, out = tmp_path / "cache", tmp_path / "d.npy"
+    code = _CHILD.format(tests=str(Path(__file__).parent), cache=str(cache), out=str(out))
+    proc = subprocess.Popen([sys.executable, "-c", code])
+    try:
+        deadline = time.time() + 120
+        n_blocks = 0
+        while time.time() < deadline and proc.poll() is None:
+            n_blocks = len(list(cache.glob("*/*.blk")))
+            if n_blocks >= 3:
+                break
+            time.sleep(0.01)
+        assert proc.poll() is None, "child finished before it could be killed"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == -signal.SIGKILL
+    n_after = len(list(cache.glob("*/*.blk")))
+    assert 3 <= n_after < 24
+    assert not out.exists()
+    kw = dict(n_points=36, mirror=True, block=1, progress=False)
+    resumed = distance_matrix(_shapes(24, seed=5), cache_dir=cache, workers=2, **kw)
+    fresh = distance_matrix(_shapes(24, seed=5), workers=1, **kw)
+    assert np.array_equal(resumed, fresh)
+    assert len(list(cache.glob("*/*.blk"))) == 24
