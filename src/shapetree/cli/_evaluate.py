@@ -1,0 +1,309 @@
+"""``shapetree evaluate`` (paper §5 benchmarks) and ``shapetree detect`` (§4)."""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import importlib
+from typing import Any
+
+from shapetree._errors import ShapeTreeError
+from shapetree.cli._common import Formatter, info, positive_int, require
+
+EVAL_SETS = ("kimia99", "mpeg7", "swedish_leaf", "ethz")
+
+EVALUATE_EPILOG = """\
+examples:
+  shapetree evaluate kimia99 --json kimia99.json --out results/
+  shapetree evaluate mpeg7 --json mpeg7.json --param n_points=100
+  shapetree evaluate ethz --classes swans bottles --workers 4 --json ethz.json --out results/
+
+kimia99 / mpeg7 / swedish_leaf run shapetree.retrieval.evaluate (all-pairs distances,
+cached and resumable, then the dataset's protocol: Kimia top-10 ranks, MPEG-7 bull's-eye,
+Swedish-leaf 1-NN accuracy); ethz runs shapetree.detection.evaluate_ethz (detection rate
+at 0.3 / 0.4 false positives per image). Fetch the data first: shapetree datasets fetch.
+Long runs show progress bars with an ETA.
+"""
+
+DETECT_EPILOG = """\
+examples:
+  shapetree detect models/Swans.tif swans/big.jpg -o swan.png --json swan.json
+  shapetree detect mug.png kitchen.jpg --edges kitchen_edges.tif -k 3
+  shapetree detect bottle.png shelf.jpg --param tau=16 --param gap_cost=0.4
+
+MODEL is an outline drawing or silhouette image, or a point file; IMAGE is searched for it
+(paper section 4: edge map, contours, contour-vs-model tables, stitching). With --edges a
+stored soft edge map is used instead of the built-in gradient edges.
+"""
+
+
+def _literal(text: str) -> Any:
+    low = text.lower()
+    if low in ("true", "yes", "on"):
+        return True
+    if low in ("false", "no", "off"):
+        return False
+    if low in ("none", "null"):
+        return None
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def key_value(text: str) -> tuple[str, Any]:
+    """argparse type: ``KEY=VALUE`` with VALUE read as a Python literal when possible."""
+    key, sep, value = text.partition("=")
+    key = key.strip().replace("-", "_")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    return key, _literal(value.strip())
+
+
+def _eval_params() -> dict[str, Any]:
+    """``shapetree.retrieval.EVAL_PARAMS`` if the retrieval package provides it."""
+    try:
+        mod = importlib.import_module("shapetree.retrieval")
+    except ImportError:
+        return {}
+    params = getattr(mod, "EVAL_PARAMS", None)
+    return dict(params) if isinstance(params, dict) else {}
+
+
+def _spec(value: Any) -> tuple[Any, str, Any]:
+    """(default, help, choices) from an EVAL_PARAMS entry of any reasonable shape."""
+    if isinstance(value, dict):
+        return value.get("default"), str(value.get("help", "")), value.get("choices")
+    if isinstance(value, tuple | list) and len(value) == 2 and isinstance(value[1], str):
+        return value[0], value[1], None
+    return value, "", None
+
+
+def _typed(default: Any):
+    if isinstance(default, bool):
+        return _literal
+    if isinstance(default, int):
+        return int
+    if isinstance(default, float):
+        return float
+    return _literal
+
+
+def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
+    """Register ``evaluate`` and ``detect``.
+
+    Parameters
+    ----------
+    sub : argparse subparsers
+    full : bool
+        Also add one option per entry of ``shapetree.retrieval.EVAL_PARAMS`` (imports the
+        retrieval package, so only done when ``evaluate`` is the command being run).
+    """
+    p = sub.add_parser(
+        "evaluate",
+        help="run a benchmark protocol (retrieval on kimia99/mpeg7/swedish_leaf, or ETHZ)",
+        description="Run a benchmark of the paper's section 5 on an installed dataset and "
+        "print (and optionally save) the scores.",
+        epilog=EVALUATE_EPILOG,
+        formatter_class=Formatter,
+    )
+    p.add_argument("dataset", choices=EVAL_SETS, help="which benchmark")
+    p.add_argument("--json", metavar="PATH", help="write the scores as JSON")
+    p.add_argument("--out", metavar="DIR", help="folder for figures (and caches)")
+    p.add_argument(
+        "-p",
+        "--param",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="set a parameter by name (repeatable); retrieval: an EVAL_PARAMS key; "
+        "ethz: a DetectParams field",
+    )
+    p.add_argument("--no-progress", action="store_true", help="hide progress bars")
+    g = p.add_argument_group("ETHZ options (evaluate ethz)")
+    g.add_argument(
+        "--data",
+        metavar="DIR",
+        default=argparse.SUPPRESS,
+        help="ETHZ folder (default: the installed ethz_shape dataset)",
+    )
+    g.add_argument(
+        "--classes",
+        nargs="+",
+        metavar="CLASS",
+        default=argparse.SUPPRESS,
+        help="subset of applelogos bottles giraffes mugs swans (default: all)",
+    )
+    g.add_argument(
+        "-k",
+        type=positive_int,
+        default=argparse.SUPPRESS,
+        metavar="K",
+        help="detections kept per image (default 5)",
+    )
+    g.add_argument(
+        "--workers",
+        type=positive_int,
+        default=argparse.SUPPRESS,
+        metavar="W",
+        help="processes (default 2)",
+    )
+    g.add_argument(
+        "--cache",
+        metavar="DIR",
+        default=argparse.SUPPRESS,
+        help="per-image detection cache (default: <out>/cache/ethz_detect)",
+    )
+    dynamic: list[str] = []
+    if full:
+        taken = {a.dest for a in p._actions}
+        r = p.add_argument_group("retrieval options (evaluate kimia99 / mpeg7 / swedish_leaf)")
+        for key, value in _eval_params().items():
+            if key in ("json_path", "out_dir", "progress") or key in taken:
+                if key in taken:
+                    dynamic.append(key)
+                continue
+            default, help_text, choices = _spec(value)
+            r.add_argument(
+                "--" + key.replace("_", "-"),
+                dest=key,
+                default=argparse.SUPPRESS,
+                type=_typed(default),
+                choices=choices,
+                metavar=None if choices else "V",
+                help=f"{help_text} (default: {default})".strip(),
+            )
+            dynamic.append(key)
+    p.set_defaults(func=cmd_evaluate, eval_dynamic=dynamic)
+
+    p = sub.add_parser(
+        "detect",
+        help="find a model shape in a cluttered image (paper section 4)",
+        description="Detect a model shape in an image: edge map, contours, matching every "
+        "contour to every model subcurve, and stitching (paper section 4, Fig. 5); print "
+        "the best detections and draw them.",
+        epilog=DETECT_EPILOG,
+        formatter_class=Formatter,
+    )
+    p.add_argument("model", metavar="MODEL", help="model outline: image or point file")
+    p.add_argument("image", metavar="IMAGE", help="image to search")
+    p.add_argument("--edges", metavar="MAP", help="stored soft edge map (grey image)")
+    p.add_argument("-o", "--output", metavar="PNG", help="picture of the detections (Fig. 5)")
+    p.add_argument("--json", metavar="PATH", help="write the detections as JSON")
+    p.add_argument("-k", type=positive_int, default=5, metavar="K", help="number of detections")
+    p.add_argument(
+        "-p",
+        "--param",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="set a detection parameter (a DetectParams field), repeatable",
+    )
+    p.set_defaults(func=cmd_detect)
+
+
+def _print_scores(scores: Any, indent: str = "") -> None:
+    if not isinstance(scores, dict):
+        info(f"{indent}{scores}")
+        return
+    for key, value in scores.items():
+        if isinstance(value, dict):
+            info(f"{indent}{key}:")
+            _print_scores(value, indent + "  ")
+        elif isinstance(value, list | tuple) and len(value) > 12:
+            info(f"{indent}{key}: [{len(value)} values]")
+        else:
+            info(f"{indent}{key}: {value}")
+
+
+def _detect_params(pairs: list[tuple[str, Any]]) -> Any:
+    if not pairs:
+        return None
+    cls = require("shapetree.detection", "DetectParams", "detection parameters")
+    try:
+        return cls(**dict(pairs))
+    except TypeError as exc:
+        raise ShapeTreeError(f"bad detection parameter: {exc}") from None
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """``shapetree evaluate``."""
+    progress = not args.no_progress
+    if args.dataset == "ethz":
+        evaluate_ethz = require("shapetree.detection", "evaluate_ethz", "the ETHZ evaluation")
+        kwargs: dict[str, Any] = {}
+        for opt, name in (
+            ("k", "k"),
+            ("workers", "workers"),
+            ("classes", "classes"),
+            ("cache", "cache_dir"),
+        ):
+            if hasattr(args, opt):
+                kwargs[name] = getattr(args, opt)
+        params = _detect_params(args.param)
+        if params is not None:
+            kwargs["params"] = params
+        scores = evaluate_ethz(
+            getattr(args, "data", None),
+            json_path=args.json,
+            out_dir=args.out,
+            progress=progress,
+            **kwargs,
+        )
+    else:
+        evaluate = require("shapetree.retrieval", "evaluate", f"evaluating {args.dataset}")
+        params = dict(args.param)
+        for key in args.eval_dynamic:
+            if hasattr(args, key):
+                params[key] = getattr(args, key)
+        try:
+            scores = evaluate(
+                args.dataset,
+                json_path=args.json,
+                out_dir=args.out,
+                progress=progress,
+                **params,
+            )
+        except TypeError as exc:
+            raise ShapeTreeError(f"bad evaluation parameter: {exc}") from None
+    info(f"{args.dataset}:")
+    _print_scores(scores, "  ")
+    if args.json:
+        info(f"json: {args.json}")
+    if args.out:
+        info(f"figures: {args.out}")
+    return 0
+
+
+def cmd_detect(args: argparse.Namespace) -> int:
+    """``shapetree detect``."""
+    detect_to_files = require("shapetree.detection", "detect_to_files", "detection")
+    if args.output:
+        from shapetree.plotting import check_figure_path
+
+        check_figure_path(args.output)
+    try:
+        dets = detect_to_files(
+            args.model,
+            args.image,
+            edges_path=args.edges,
+            out_png=args.output,
+            out_json=args.json,
+            k=args.k,
+            **dict(args.param),
+        )
+    except TypeError as exc:
+        raise ShapeTreeError(f"bad detection parameter: {exc}") from None
+    info(f"{len(dets)} detection(s) of {args.model} in {args.image}")
+    if dets:
+        info(f"{'rank':>4}  {'cost':>9}  {'coverage':>8}  box (x1, y1, x2, y2)")
+        for i, d in enumerate(dets, start=1):
+            box = ", ".join(f"{v:.0f}" for v in d.bbox)
+            info(f"{i:>4}  {d.cost:>9.4f}  {d.coverage:>8.2f}  ({box})")
+    if args.output:
+        info(f"picture: {args.output}")
+    if args.json:
+        info(f"json: {args.json}")
+    return 0
