@@ -15,6 +15,13 @@ from shapetree.detection._detect import (
     detect_detailed,
 )
 from shapetree.detection._edges import edge_map, load_edges, load_image
+from shapetree.detection._ethz_eval import ETHZ_CLASSES, dr_at_fppi, dr_fppi_curve, evaluate_ethz
+from shapetree.detection._files import (
+    detect_to_files,
+    plot_contours,
+    plot_detection,
+    plot_detection_run,
+)
 from shapetree.detection._model import DetectionModel, load_model, make_model, outline_from_image
 from shapetree.detection._tables import contour_tables
 
@@ -23,6 +30,14 @@ __all__ = [
     "Detection",
     "DetectionModel",
     "DetectionRun",
+    "ETHZ_CLASSES",
+    "detect_to_files",
+    "dr_at_fppi",
+    "dr_fppi_curve",
+    "evaluate_ethz",
+    "plot_contours",
+    "plot_detection",
+    "plot_detection_run",
     "contour_tables",
     "detect",
     "detect_detailed",

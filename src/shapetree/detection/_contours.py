@@ -258,9 +258,15 @@ def trace_contours_detailed(
         if length < max(min_length, 1.0):
             continue
         dense = resample_polyline(xy, max(2, int(np.ceil(length)) + 1))
-        for piece in _split_sharp(dense, max_turn, turn_window):
-            if polyline_length(piece) >= max(min_length, 1.0):
-                out.append(TracedContour(points=piece, strength=strength))
+        parts = [dense]
+        if np.hypot(*(dense[-1] - dense[0])) < 1.5 and len(dense) >= 4:
+            # a loop closed through a junction pixel: cut at the farthest point
+            k = int(np.argmax(np.hypot(*(dense - dense[0]).T)))
+            parts = [dense[: k + 1], dense[k:]]
+        for part in parts:
+            for piece in _split_sharp(part, max_turn, turn_window):
+                if polyline_length(piece) >= max(min_length, 1.0):
+                    out.append(TracedContour(points=piece, strength=strength))
     out.sort(key=lambda t: -polyline_length(t.points) * t.strength)
     return out
 

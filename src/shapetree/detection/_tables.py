@@ -59,7 +59,9 @@ def contour_tables(
     ndarray, shape (2 * len(contours), m, m), float64
         Row ``2 i`` is contour ``i`` as given, row ``2 i + 1`` reversed;
         entry ``[s, L]`` as described in the module docstring (column 0 is
-        ``inf``).  Cost: ``O(sum_i n_i * m^3)``.
+        ``inf``).  A contour the kernel rejects (e.g. one passing twice
+        through the same point) gets ``inf`` everywhere.  Cost:
+        ``O(sum_i n_i * m^3)``.
     """
     prepare_target, subcurve_table = backend()
     target = prepare_target(np.asarray(model_points, dtype=np.float64), closed=True)
@@ -67,7 +69,11 @@ def contour_tables(
     out = np.empty((2 * len(contours), m, m))
     for i, c in enumerate(contours):
         c = np.asarray(c, dtype=np.float64)
-        out[2 * i] = subcurve_table(c, target, weight=weight)
-        out[2 * i + 1] = subcurve_table(np.ascontiguousarray(c[::-1]), target, weight=weight)
+        try:
+            out[2 * i] = subcurve_table(c, target, weight=weight)
+            out[2 * i + 1] = subcurve_table(np.ascontiguousarray(c[::-1]), target, weight=weight)
+        except ShapeTreeError:
+            # e.g. a contour through the same point twice: no shape-tree; never matched
+            out[2 * i : 2 * i + 2] = np.inf
     out[:, :, 0] = np.inf
     return out
