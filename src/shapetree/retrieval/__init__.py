@@ -7,6 +7,15 @@ from shapetree.retrieval._engine import (
     distance_matrix,
     mirror_curve,
 )
+from shapetree.retrieval._evaluate import (
+    DATASET_DEFAULTS,
+    EVAL_PARAMS,
+    PAPER_TABLES,
+    evaluate,
+    format_table,
+    machine_info,
+)
+from shapetree.retrieval._figures import plot_bullseye_per_class, plot_retrieval_grid
 from shapetree.retrieval._protocols import (
     bullseye,
     bullseye_per_class,
@@ -17,6 +26,9 @@ from shapetree.retrieval._protocols import (
 )
 
 __all__ = [
+    "DATASET_DEFAULTS",
+    "EVAL_PARAMS",
+    "PAPER_TABLES",
     "DistanceParams",
     "bullseye",
     "bullseye_per_class",
@@ -24,8 +36,13 @@ __all__ = [
     "combine",
     "directed_costs",
     "distance_matrix",
+    "evaluate",
+    "format_table",
+    "machine_info",
     "kimia_ranks",
     "mirror_curve",
     "nn_accuracy_splits",
+    "plot_bullseye_per_class",
+    "plot_retrieval_grid",
     "ranked_neighbours",
 ]

@@ -16,6 +16,7 @@ import json
 import os
 import struct
 import threading
+import time
 import warnings
 from collections.abc import Sequence
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
@@ -83,6 +84,9 @@ class DistanceParams:
         Midpoint rule of the shape-trees.
     mirror : bool
         Also deform the mirrored model and keep, per pair, the cheaper of the two.
+    band : float or None
+        Pruned matching (:class:`shapetree.matching.MatchParams`): a model subcurve may
+        only stretch by at most this factor; ``None`` is exact matching.
     """
 
     n_points: int | None = 50
@@ -91,13 +95,14 @@ class DistanceParams:
     n_trees: int = 1
     split: str = "half"
     mirror: bool = False
+    band: float | None = None
 
     def __post_init__(self) -> None:
         if self.n_points is not None and int(self.n_points) < 4:
             raise ShapeTreeError(f"n_points must be at least 4, got {self.n_points}")
         if int(self.n_trees) < 1:
             raise ShapeTreeError(f"n_trees must be at least 1, got {self.n_trees}")
-        MatchParams(occlusion=self.occlusion)  # validates κ
+        MatchParams(occlusion=self.occlusion, band=self.band)  # validates κ and band
         if not (np.isfinite(self.weight) and self.weight > 0):
             raise ShapeTreeError(f"weight must be a positive number, got {self.weight}")
 
@@ -120,7 +125,10 @@ def _prep_curves(curves: Sequence[ArrayLike], n_points: int | None, what: str) -
 def _cache_key(models: list[np.ndarray], targets: list[np.ndarray], p: DistanceParams) -> str:
     h = hashlib.sha256()
     h.update(f"shapetree-dm v{ENGINE_VERSION}\n".encode())
-    h.update(json.dumps(asdict(p), sort_keys=True).encode())
+    spec = asdict(p)
+    if spec["band"] is None:  # keys of exact runs predate the band option
+        del spec["band"]
+    h.update(json.dumps(spec, sort_keys=True).encode())
     for group in (models, targets):
         h.update(struct.pack("<Q", len(group)))
         for c in group:
@@ -208,7 +216,7 @@ def _compute_block(
     tick=None,
 ) -> np.ndarray:
     """Directed costs of ``models`` (rows) against every target: shape (n_pass, r, m)."""
-    mp = MatchParams(occlusion=p.occlusion)
+    mp = MatchParams(occlusion=p.occlusion, band=p.band)
     kw = dict(closed=True, n_trees=p.n_trees, split=p.split, weight=p.weight)
     passes = [[prepare_model(a, **kw) for a in models]]
     if p.mirror:
@@ -234,11 +242,13 @@ def directed_costs(
     n_trees: int = 1,
     split: str = "half",
     mirror: bool = False,
+    band: float | None = None,
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
     block: int = 8,
     progress: bool = True,
     desc: str = "matching",
+    stats: dict | None = None,
 ) -> np.ndarray:
     """Directed costs ``ψ(model_i, target_j)``, one layer per pass (plain, mirrored).
 
@@ -248,7 +258,7 @@ def directed_costs(
         Closed curves whose shape-trees are deformed (rows).
     targets : sequence of array_like, optional
         Closed curves deformed onto (columns); default ``models``.
-    n_points, weight, occlusion, n_trees, split, mirror
+    n_points, weight, occlusion, n_trees, split, mirror, band
         See :class:`DistanceParams`.
     workers : int
         Threads (the matching kernel releases the GIL).
@@ -261,13 +271,16 @@ def directed_costs(
         Show a tqdm progress bar with ETA.
     desc : str
         Progress-bar label.
+    stats : dict, optional
+        Filled with ``pairs``, ``pairs_computed``, ``blocks``, ``blocks_cached``,
+        ``seconds`` and ``key``.
 
     Returns
     -------
     ndarray, shape (n_pass, n_models, n_targets)
         ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``).
     """
-    p = DistanceParams(n_points, weight, occlusion, int(n_trees), split, bool(mirror))
+    p = DistanceParams(n_points, weight, occlusion, int(n_trees), split, bool(mirror), band)
     ms = _prep_curves(models, p.n_points, "model curve")
     ts = ms if targets is None else _prep_curves(targets, p.n_points, "target curve")
     n, m = len(ms), len(ts)
@@ -297,6 +310,7 @@ def directed_costs(
         else:
             out[:, r0:r1] = arr
     done_pairs = (n - sum(r1 - r0 for r0, r1 in todo)) * m
+    t_start = time.perf_counter()
 
     bar = None
     if progress and todo:
@@ -339,6 +353,15 @@ def directed_costs(
     finally:
         if bar is not None:
             bar.close()
+    if stats is not None:
+        stats.update(
+            pairs=n * m,
+            pairs_computed=n * m - done_pairs,
+            blocks=len(ranges),
+            blocks_cached=len(ranges) - len(todo),
+            seconds=time.perf_counter() - t_start,
+            key=key,
+        )
     return out
 
 
@@ -387,6 +410,7 @@ def distance_matrix(
     n_trees: int = 1,
     split: str = "half",
     mirror: bool = False,
+    band: float | None = None,
     symmetrize: str | None = "min",
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
@@ -413,6 +437,8 @@ def distance_matrix(
         Midpoint rule of the shape-trees.
     mirror : bool
         Mirror invariance: also deform the mirrored curve, keep the cheaper cost.
+    band : float or None
+        Pruned (banded) matching: maximum stretch factor of a subcurve; ``None``: exact.
     symmetrize : {"min", "mean", "max", "none", "reverse"} or None
         How the two directions ψ(i, j) and ψ(j, i) are combined (see :func:`combine`);
         ``"none"`` uses ψ(query, database) only (for a rectangular matrix that halves the
@@ -450,6 +476,7 @@ def distance_matrix(
         n_trees=n_trees,
         split=split,
         mirror=mirror,
+        band=band,
         workers=workers,
         cache_dir=cache_dir,
         progress=progress,

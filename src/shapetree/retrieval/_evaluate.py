@@ -1,0 +1,427 @@
+"""Benchmark evaluations of §5.1 (Tables 1–3): one function per call of ``shapetree evaluate``.
+
+:func:`evaluate` loads a dataset, computes its distance matrix with the engine, applies the
+dataset's protocol, prints the paper's table with our measured row beside the published
+rows, and optionally writes a JSON record and pictures. :data:`EVAL_PARAMS` describes every
+option (type, default, help) so a command-line front end can turn them into flags.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from shapetree._errors import ShapeTreeError
+from shapetree.retrieval._engine import SYMMETRIZE, combine, directed_costs
+from shapetree.retrieval._protocols import (
+    bullseye,
+    bullseye_per_class,
+    kimia_ranks,
+    nn_accuracy_splits,
+)
+
+__all__ = [
+    "DATASET_DEFAULTS",
+    "EVAL_PARAMS",
+    "PAPER_TABLES",
+    "evaluate",
+    "format_table",
+    "machine_info",
+]
+
+DATASETS = ("kimia99", "mpeg7", "swedish_leaf")
+
+#: Published rows of the paper's Tables 1–3 (method, value); Table 3 rows are rank counts.
+PAPER_TABLES: dict[str, dict[str, Any]] = {
+    "mpeg7": {
+        "title": "Table 1. Classification results on the MPEG-7 dataset (bull's-eye)",
+        "rows": [
+            ("Shape-tree (paper)", 87.70),
+            ("IDSC + DP + EMD [17]", 86.56),
+            ("Hierarchical Procrustes [19]", 86.35),
+            ("IDSC + DP [16]", 85.40),
+            ("Generative Models [27]", 80.03),
+            ("Curve Edit [23]", 78.14),
+            ("SC + TPS [3]", 76.51),
+            ("Visual Parts [15]", 76.45),
+            ("CSS [20]", 75.44),
+        ],
+    },
+    "swedish_leaf": {
+        "title": "Table 2. Classification results on the Swedish leaf dataset (1-NN)",
+        "rows": [
+            ("Shape-tree (paper)", 96.28),
+            ("IDSC + DP [16]", 94.13),
+            ("SC + DP [16]", 88.12),
+            ("Fourier descriptors [16]", 89.60),
+            ("Soderkvist [26]", 82.40),
+        ],
+    },
+    "kimia99": {
+        "title": "Table 3. Retrieval results on Kimia-99 (same-class shapes at ranks 1..10)",
+        "rows": [
+            ("Shape-tree (paper)", [99, 99, 99, 99, 99, 99, 99, 97, 93, 86]),
+            ("IDSC + DP [16]", [99, 99, 99, 98, 98, 97, 97, 98, 94, 79]),
+            ("Shock-Graph Edit [24]", [99, 99, 99, 98, 98, 97, 96, 95, 93, 82]),
+            ("Generative Models [27]", [99, 97, 99, 98, 96, 96, 94, 83, 75, 48]),
+        ],
+    },
+}
+
+#: Options of :func:`evaluate`: ``{name: {"type", "default", "help"[, "choices"]}}``.
+#: A default of ``None`` for a matching option means "the dataset's tuned default"
+#: (:data:`DATASET_DEFAULTS`).
+EVAL_PARAMS: dict[str, dict[str, Any]] = {
+    "n_points": {
+        "type": int,
+        "default": None,
+        "help": "sample points per curve (resampled evenly in arc length)",
+    },
+    "weight": {
+        "type": float,
+        "default": None,
+        "help": "lambda factor of the shape-tree nodes (matters only with --occlusion)",
+    },
+    "occlusion": {
+        "type": float,
+        "default": None,
+        "help": "replacement cost factor kappa (0 or omitted: no replacement)",
+    },
+    "n_trees": {
+        "type": int,
+        "default": None,
+        "help": "shape-trees per model (rotated start points), best taken",
+    },
+    "mirror": {
+        "type": bool,
+        "default": None,
+        "help": "also match the mirrored curve and keep the better cost",
+    },
+    "band": {
+        "type": float,
+        "default": None,
+        "help": "pruned matching: max stretch of a subcurve (0: exact matching)",
+    },
+    "symmetrize": {
+        "type": str,
+        "default": None,
+        "choices": list(SYMMETRIZE),
+        "help": "combine psi(q,x) and psi(x,q): min, mean, max, none (psi(query, x)), "
+        "reverse (psi(x, query))",
+    },
+    "workers": {"type": int, "default": 2, "help": "threads"},
+    "block": {"type": int, "default": 8, "help": "rows per cached block"},
+    "cache_dir": {
+        "type": str,
+        "default": None,
+        "help": "resumable cache of finished blocks (default: none)",
+    },
+    "classes": {
+        "type": str,
+        "default": None,
+        "help": "comma-separated subset of classes (quick runs)",
+    },
+    "per_class": {"type": int, "default": None, "help": "at most this many shapes per class"},
+    "k": {"type": int, "default": 40, "help": "bull's-eye neighbourhood (mpeg7)"},
+    "n_train": {"type": int, "default": 25, "help": "training shapes per class (swedish_leaf)"},
+    "n_splits": {"type": int, "default": 10, "help": "random splits (swedish_leaf)"},
+    "seed": {"type": int, "default": 0, "help": "seed of the splits (swedish_leaf)"},
+    "n_show": {"type": int, "default": 10, "help": "matches per query in the retrieval grid"},
+}
+
+_MATCH_KEYS = ("n_points", "weight", "occlusion", "n_trees", "mirror", "band", "symmetrize")
+
+#: Tuned matching settings per dataset (see ``benchmarks/results/*.json`` for the runs).
+DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
+    "kimia99": {
+        "n_points": 50,
+        "weight": 1.0,
+        "occlusion": None,
+        "n_trees": 1,
+        "mirror": True,
+        "band": None,
+        "symmetrize": "none",
+    },
+    "mpeg7": {
+        "n_points": 50,
+        "weight": 1.0,
+        "occlusion": None,
+        "n_trees": 1,
+        "mirror": True,
+        "band": 2.0,
+        "symmetrize": "none",
+    },
+    "swedish_leaf": {
+        "n_points": 50,
+        "weight": 1.0,
+        "occlusion": None,
+        "n_trees": 1,
+        "mirror": True,
+        "band": 2.0,
+        "symmetrize": "none",
+    },
+}
+
+
+def machine_info() -> dict[str, Any]:
+    """CPU model, core count, load average, Python / NumPy / numba versions, platform."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    import numba
+
+    info: dict[str, Any] = {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "python": sys.version.split()[0],
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "platform": platform.platform(),
+    }
+    try:
+        info["loadavg_at_end"] = [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        pass
+    return info
+
+
+def _resolve(name: str, params: dict[str, Any]) -> dict[str, Any]:
+    unknown = set(params) - set(EVAL_PARAMS)
+    if unknown:
+        raise ShapeTreeError(f"unknown evaluate option(s): {sorted(unknown)}")
+    p = {k: v["default"] for k, v in EVAL_PARAMS.items()}
+    p.update({k: v for k, v in DATASET_DEFAULTS[name].items()})
+    for k, v in params.items():
+        if v is not None or k not in _MATCH_KEYS:
+            p[k] = v
+    # 0 means "off" for the optional numbers (handy on a command line)
+    for k in ("occlusion", "band"):
+        if p[k] is not None and float(p[k]) == 0.0:
+            p[k] = None
+    if isinstance(p["classes"], str):
+        p["classes"] = [c.strip() for c in p["classes"].split(",") if c.strip()]
+    return p
+
+
+def format_table(name: str, ours: Any, label: str = "Shape-tree (shapetree, measured)") -> str:
+    """The paper's table for ``name`` with our row on top.
+
+    Parameters
+    ----------
+    name : {"kimia99", "mpeg7", "swedish_leaf"}
+    ours : float or sequence of int
+        Our percentage (mpeg7, swedish_leaf) or ten rank counts (kimia99).
+    label : str
+
+    Returns
+    -------
+    str
+    """
+    table = PAPER_TABLES[name]
+    rows = [(label, ours)] + list(table["rows"])
+    width = max(len(r[0]) for r in rows) + 2
+    lines = [table["title"]]
+    if name == "kimia99":
+        lines.append("Method".ljust(width) + " ".join(f"{r:>4}" for r in range(1, 11)) + "   sum")
+        for m, v in rows:
+            vals = [int(x) for x in v]
+            lines.append(m.ljust(width) + " ".join(f"{x:>4d}" for x in vals) + f"  {sum(vals):4d}")
+    else:
+        lines.append("Method".ljust(width) + "Recognition rate")
+        for m, v in rows:
+            lines.append(m.ljust(width) + f"{float(v):.2f}%")
+    return "\n".join(lines)
+
+
+def evaluate(
+    name: str,
+    *,
+    json_path: str | os.PathLike[str] | None = None,
+    out_dir: str | os.PathLike[str] | None = None,
+    progress: bool = True,
+    verbose: bool = True,
+    command: str | None = None,
+    **params: Any,
+) -> dict[str, Any]:
+    """Run one of the paper's benchmarks (Tables 1–3) and report it.
+
+    Parameters
+    ----------
+    name : {"kimia99", "mpeg7", "swedish_leaf"}
+    json_path : path-like, optional
+        Write the result record here (atomically).
+    out_dir : path-like, optional
+        Write pictures here: ``<name>_retrieval.png`` (queries with their nearest shapes,
+        wrong classes in red) and, for mpeg7, ``<name>_bullseye_per_class.png``.
+    progress : bool
+        Progress bar of the distance computation.
+    verbose : bool
+        Print the table.
+    command : str, optional
+        The command line to record (default: ``python -m ... evaluate`` reconstructed).
+    **params
+        Any key of :data:`EVAL_PARAMS`; matching options left at ``None`` take the
+        dataset's tuned value from :data:`DATASET_DEFAULTS`.
+
+    Returns
+    -------
+    dict
+        The record also written to ``json_path``: ``dataset``, ``params`` (every value
+        used), ``n_shapes``, ``seconds`` (wall time of the whole evaluation),
+        ``seconds_matrix``, ``pairs``, ``pairs_computed`` (0 when every block came from the
+        cache), ``machine``, the paper's rows, and the score: ``ranks`` (kimia99: ten
+        ints), ``bullseye`` (mpeg7: percent, plus ``bullseye_per_class``) or
+        ``accuracy_mean`` / ``accuracy_std`` / ``accuracy_splits`` (swedish_leaf, percent).
+    """
+    from shapetree import datasets
+
+    if name not in DATASETS:
+        raise ShapeTreeError(f"unknown benchmark {name!r}; choose one of {DATASETS}")
+    t_start = time.perf_counter()
+    p = _resolve(name, params)
+    ds = datasets.load(
+        name,
+        n_points=p["n_points"],
+        progress=progress,
+        classes=p["classes"],
+        per_class=p["per_class"],
+    )
+    labels = np.asarray(ds.labels)
+    stats: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    costs = directed_costs(
+        ds.curves,
+        n_points=p["n_points"],
+        weight=p["weight"],
+        occlusion=p["occlusion"],
+        n_trees=p["n_trees"],
+        mirror=bool(p["mirror"]),
+        band=p["band"],
+        workers=p["workers"],
+        cache_dir=p["cache_dir"],
+        block=p["block"],
+        progress=progress,
+        desc=name,
+        stats=stats,
+    )
+    seconds_matrix = time.perf_counter() - t0
+    D = combine(costs, p["symmetrize"])
+    rec: dict[str, Any] = {"dataset": name}
+    if name == "kimia99":
+        ranks = kimia_ranks(D, labels)
+        rec["ranks"] = [int(x) for x in ranks]
+        rec["ranks_sum"] = int(ranks.sum())
+        ours: Any = rec["ranks"]
+    elif name == "mpeg7":
+        rec["bullseye"] = round(bullseye(D, labels, k=p["k"]), 4)
+        rec["bullseye_per_class"] = {
+            c: round(v, 2) for c, v in bullseye_per_class(D, labels, k=p["k"]).items()
+        }
+        ours = rec["bullseye"]
+    else:
+        mean, std, accs = nn_accuracy_splits(
+            D, labels, p["n_train"], p["n_splits"], p["seed"], return_splits=True
+        )
+        rec["accuracy_mean"] = round(mean, 4)
+        rec["accuracy_std"] = round(std, 4)
+        rec["accuracy_splits"] = [round(float(a), 4) for a in accs]
+        ours = rec["accuracy_mean"]
+    table = format_table(name, ours)
+    if verbose:
+        print(table)
+        print(
+            f"{len(labels)} shapes, {stats.get('pairs', 0)} ordered pairs "
+            f"({stats.get('pairs_computed', 0)} computed now), matrix {seconds_matrix:.1f} s"
+        )
+    pictures = []
+    if out_dir is not None:
+        from shapetree.retrieval._figures import plot_bullseye_per_class, plot_retrieval_grid
+
+        out = Path(out_dir)
+        pictures.append(
+            str(
+                plot_retrieval_grid(
+                    D,
+                    labels,
+                    ds.curves,
+                    out / f"{name}_retrieval.png",
+                    n_top=p["n_show"],
+                    title=f"{name}: queries (left) and nearest shapes, wrong class in red",
+                )
+            )
+        )
+        if name == "mpeg7":
+            pictures.append(
+                str(
+                    plot_bullseye_per_class(
+                        rec["bullseye_per_class"],
+                        out / f"{name}_bullseye_per_class.png",
+                        overall=rec["bullseye"],
+                    )
+                )
+            )
+    rec.update(
+        {
+            "params": {k: p[k] for k in EVAL_PARAMS},
+            "n_shapes": int(len(labels)),
+            "n_classes": len(set(labels.tolist())),
+            "pairs": stats.get("pairs"),
+            "pairs_computed": stats.get("pairs_computed"),
+            "blocks_from_cache": stats.get("blocks_cached"),
+            "seconds_matrix": round(seconds_matrix, 2),
+            "seconds": round(time.perf_counter() - t_start, 2),
+            "command": command or _default_command(name, json_path, out_dir, params),
+            "machine": machine_info(),
+            "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "paper": PAPER_TABLES[name]["rows"][0][1],
+            "paper_table": PAPER_TABLES[name]["rows"],
+            "table": table,
+            "pictures": pictures,
+        }
+    )
+    if json_path is not None:
+        _write_json(Path(json_path), rec)
+    return rec
+
+
+def _default_command(name: str, json_path: Any, out_dir: Any, params: dict[str, Any]) -> str:
+    parts = ["shapetree", "evaluate", name]
+    for k, v in params.items():
+        if v is None:
+            continue
+        flag = "--" + k.replace("_", "-")
+        if isinstance(v, bool):
+            parts.append(flag if v else "--no-" + k.replace("_", "-"))
+        elif isinstance(v, list | tuple):
+            parts += [flag, ",".join(map(str, v))]
+        else:
+            parts += [flag, str(v)]
+    if json_path is not None:
+        parts += ["--json", str(json_path)]
+    if out_dir is not None:
+        parts += ["--out-dir", str(out_dir)]
+    return " ".join(parts)
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    import json
+    import tempfile
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        json.dump(data, fh, indent=2)
+        fh.write("\n")
+    os.replace(tmp, path)
