@@ -87,8 +87,14 @@ def glyph_outline(
 
     if not isinstance(char, str) or len(char) != 1:
         raise ShapeTreeError(f"glyph_outline needs a single character, got {char!r}")
-    path = TextPath((0, 0), char, size=1.0, prop=FontProperties(family=family, weight=weight))
-    polys = [np.asarray(p, dtype=float) for p in path.to_polygons(closed_only=True)]
+    if char.isspace():
+        raise ShapeTreeError(f"the character {char!r} has no glyph outline")
+    try:
+        path = TextPath((0, 0), char, size=1.0, prop=FontProperties(family=family, weight=weight))
+        raw = path.to_polygons(closed_only=True)
+    except (AttributeError, ValueError, RuntimeError) as exc:  # glyphs with no outline
+        raise ShapeTreeError(f"cannot render the glyph {char!r}: {exc}") from None
+    polys = [np.asarray(p, dtype=float) for p in raw]
     polys = [p[:-1] if len(p) > 1 and np.allclose(p[0], p[-1]) else p for p in polys]
     polys = [p for p in polys if len(p) >= 3]
     if not polys:
