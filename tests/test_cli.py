@@ -315,3 +315,97 @@ def test_evaluate_without_data_is_one_line(capsys, tmp_path, monkeypatch):
 def test_detect_missing_files_is_one_line(capsys, tmp_path):
     code, _, err = run(capsys, "detect", tmp_path / "model.png", tmp_path / "image.jpg")
     assert code == 2 and err.startswith("shapetree: error: ") and err.count("\n") == 1, err
+
+
+def test_evaluate_passes_options_to_retrieval(capsys, monkeypatch, tmp_path):
+    import shapetree.retrieval as retrieval
+
+    seen = {}
+
+    def fake_evaluate(name, **kwargs):
+        seen.update(kwargs, name=name)
+        return {"dataset": name}
+
+    monkeypatch.setattr(retrieval, "evaluate", fake_evaluate)
+    code, _, err = run(
+        capsys,
+        "evaluate",
+        "mpeg7",
+        "--json",
+        tmp_path / "r.json",
+        "--no-progress",
+        "--n-points",
+        "30",
+        "--no-mirror",
+        "--workers",
+        "3",
+        "-k",
+        "20",
+        "--param",
+        "band=1.5",
+    )
+    assert code == 0, err
+    assert seen["name"] == "mpeg7" and seen["json_path"] == str(tmp_path / "r.json")
+    assert seen["progress"] is False
+    assert seen["n_points"] == 30 and seen["mirror"] is False and seen["band"] == 1.5
+    assert seen["workers"] == 3 and seen["k"] == 20
+    assert "weight" not in seen  # untouched options keep the library's (per-dataset) default
+
+
+def test_evaluate_ethz_and_detect_are_wired(capsys, monkeypatch, tmp_path):
+    import shapetree.detection as detection
+
+    calls = {}
+
+    def fake_ethz(data_dir, **kwargs):
+        calls["ethz"] = (data_dir, kwargs)
+        return {"overlap_20": {"dr_fppi_0.4": {"mean": 0.5}}}
+
+    class Det:
+        cost, coverage, bbox = 0.25, 0.9, (1.0, 2.0, 30.0, 40.0)
+
+    def fake_detect(model, image, **kwargs):
+        calls["detect"] = (model, image, kwargs)
+        return [Det()]
+
+    monkeypatch.setattr(detection, "evaluate_ethz", fake_ethz)
+    monkeypatch.setattr(detection, "detect_to_files", fake_detect)
+    code, out, err = run(
+        capsys,
+        "evaluate",
+        "ethz",
+        "--data",
+        tmp_path,
+        "--classes",
+        "swans",
+        "-k",
+        "3",
+        "--workers",
+        "1",
+        "--param",
+        "tau=10",
+    )
+    assert code == 0, err
+    data_dir, kw = calls["ethz"]
+    assert data_dir == str(tmp_path) and kw["classes"] == ["swans"] and kw["k"] == 3
+    assert kw["workers"] == 1 and kw["params"].tau == 10 and kw["progress"] is True
+    assert "mean: 0.5" in out
+    code, out, err = run(
+        capsys,
+        "detect",
+        "m.png",
+        "i.jpg",
+        "--edges",
+        "e.png",
+        "-k",
+        "2",
+        "-o",
+        tmp_path / "d.png",
+        "--json",
+        tmp_path / "d.json",
+    )
+    assert code == 0, err
+    model, image, kw = calls["detect"]
+    assert (model, image, kw["edges_path"], kw["k"]) == ("m.png", "i.jpg", "e.png", 2)
+    assert kw["out_png"] == str(tmp_path / "d.png") and kw["out_json"] == str(tmp_path / "d.json")
+    assert "0.2500" in out and "(1, 2, 30, 40)" in out

@@ -95,6 +95,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         parser = build_parser(args_list)
         args = parser.parse_args(args_list)
+        args.argv = args_list
         return int(args.func(args) or 0)
     except SystemExit as exc:  # argparse: --help, --version, usage errors
         code = exc.code

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import ast
 import importlib
+import shlex
 from typing import Any
 
 from shapetree._errors import ShapeTreeError
@@ -70,13 +71,26 @@ def _eval_params() -> dict[str, Any]:
     return dict(params) if isinstance(params, dict) else {}
 
 
-def _spec(value: Any) -> tuple[Any, str, Any]:
-    """(default, help, choices) from an EVAL_PARAMS entry of any reasonable shape."""
+def _tuned_keys() -> set[str]:
+    """Keys whose default depends on the dataset (``retrieval.DATASET_DEFAULTS``)."""
+    mod = importlib.import_module("shapetree.retrieval")
+    per = getattr(mod, "DATASET_DEFAULTS", {})
+    return {k for d in per.values() if isinstance(d, dict) for k in d}
+
+
+def _spec(value: Any) -> tuple[Any, str, Any, Any]:
+    """(default, help, choices, type) from an EVAL_PARAMS entry of any reasonable shape."""
     if isinstance(value, dict):
-        return value.get("default"), str(value.get("help", "")), value.get("choices")
+        typ = value.get("type")
+        return (
+            value.get("default"),
+            str(value.get("help", "")),
+            value.get("choices"),
+            typ if isinstance(typ, type) else None,
+        )
     if isinstance(value, tuple | list) and len(value) == 2 and isinstance(value[1], str):
-        return value[0], value[1], None
-    return value, "", None
+        return value[0], value[1], None, None
+    return value, "", None, None
 
 
 def _typed(default: Any):
@@ -121,6 +135,37 @@ def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
         "ethz: a DetectParams field",
     )
     p.add_argument("--no-progress", action="store_true", help="hide progress bars")
+    g = p.add_argument_group("options of both kinds of benchmark")
+    g.add_argument(
+        "--classes",
+        nargs="+",
+        metavar="CLASS",
+        default=argparse.SUPPRESS,
+        help="subset of classes (quick runs); ethz: applelogos bottles giraffes mugs swans "
+        "(default: all)",
+    )
+    g.add_argument(
+        "-k",
+        type=positive_int,
+        default=argparse.SUPPRESS,
+        metavar="K",
+        help="mpeg7: bull's-eye neighbourhood (default 40); ethz: detections kept per image "
+        "(default 5)",
+    )
+    g.add_argument(
+        "--workers",
+        type=positive_int,
+        default=argparse.SUPPRESS,
+        metavar="W",
+        help="threads (retrieval) or processes (ethz) (default 2)",
+    )
+    g.add_argument(
+        "--cache-dir",
+        dest="cache_dir",
+        metavar="DIR",
+        default=argparse.SUPPRESS,
+        help="resumable cache (retrieval: default none; ethz: <out>/cache/ethz_detect)",
+    )
     g = p.add_argument_group("ETHZ options (evaluate ethz)")
     g.add_argument(
         "--data",
@@ -128,52 +173,36 @@ def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
         default=argparse.SUPPRESS,
         help="ETHZ folder (default: the installed ethz_shape dataset)",
     )
-    g.add_argument(
-        "--classes",
-        nargs="+",
-        metavar="CLASS",
-        default=argparse.SUPPRESS,
-        help="subset of applelogos bottles giraffes mugs swans (default: all)",
-    )
-    g.add_argument(
-        "-k",
-        type=positive_int,
-        default=argparse.SUPPRESS,
-        metavar="K",
-        help="detections kept per image (default 5)",
-    )
-    g.add_argument(
-        "--workers",
-        type=positive_int,
-        default=argparse.SUPPRESS,
-        metavar="W",
-        help="processes (default 2)",
-    )
-    g.add_argument(
-        "--cache",
-        metavar="DIR",
-        default=argparse.SUPPRESS,
-        help="per-image detection cache (default: <out>/cache/ethz_detect)",
-    )
-    dynamic: list[str] = []
+    dynamic: list[str] = ["classes", "k", "workers", "cache_dir"]
     if full:
         taken = {a.dest for a in p._actions}
+        tuned = _tuned_keys()
         r = p.add_argument_group("retrieval options (evaluate kimia99 / mpeg7 / swedish_leaf)")
         for key, value in _eval_params().items():
-            if key in ("json_path", "out_dir", "progress") or key in taken:
-                if key in taken:
-                    dynamic.append(key)
+            if key in taken or key in ("json_path", "out_dir", "progress", "verbose"):
                 continue
-            default, help_text, choices = _spec(value)
-            r.add_argument(
-                "--" + key.replace("_", "-"),
-                dest=key,
-                default=argparse.SUPPRESS,
-                type=_typed(default),
-                choices=choices,
-                metavar=None if choices else "V",
-                help=f"{help_text} (default: {default})".strip(),
-            )
+            default, help_text, choices, typ = _spec(value)
+            flag = "--" + key.replace("_", "-")
+            shown = "per dataset" if default is None and key in tuned else default
+            text = f"{help_text} (default: {shown})".strip()
+            if typ is bool:
+                r.add_argument(
+                    flag,
+                    dest=key,
+                    default=argparse.SUPPRESS,
+                    action=argparse.BooleanOptionalAction,
+                    help=text,
+                )
+            else:
+                r.add_argument(
+                    flag,
+                    dest=key,
+                    default=argparse.SUPPRESS,
+                    type=typ or _typed(default),
+                    choices=choices,
+                    metavar=None if choices else "V",
+                    help=text,
+                )
             dynamic.append(key)
     p.set_defaults(func=cmd_evaluate, eval_dynamic=dynamic)
 
@@ -234,14 +263,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.dataset == "ethz":
         evaluate_ethz = require("shapetree.detection", "evaluate_ethz", "the ETHZ evaluation")
         kwargs: dict[str, Any] = {}
-        for opt, name in (
-            ("k", "k"),
-            ("workers", "workers"),
-            ("classes", "classes"),
-            ("cache", "cache_dir"),
-        ):
-            if hasattr(args, opt):
-                kwargs[name] = getattr(args, opt)
+        for name in ("k", "workers", "classes", "cache_dir"):
+            if hasattr(args, name):
+                kwargs[name] = getattr(args, name)
         params = _detect_params(args.param)
         if params is not None:
             kwargs["params"] = params
@@ -258,18 +282,23 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         for key in args.eval_dynamic:
             if hasattr(args, key):
                 params[key] = getattr(args, key)
+        command = " ".join(["shapetree", *(shlex.quote(a) for a in args.argv)])
         try:
-            scores = evaluate(
+            evaluate(
                 args.dataset,
                 json_path=args.json,
                 out_dir=args.out,
                 progress=progress,
+                verbose=True,  # prints the paper's table with our row on top
+                command=command,
                 **params,
             )
         except TypeError as exc:
             raise ShapeTreeError(f"bad evaluation parameter: {exc}") from None
-    info(f"{args.dataset}:")
-    _print_scores(scores, "  ")
+        scores = None
+    if scores is not None:
+        info(f"{args.dataset}:")
+        _print_scores(scores, "  ")
     if args.json:
         info(f"json: {args.json}")
     if args.out:
