@@ -145,3 +145,11 @@ def _dir_png(tmp_path):
     d = tmp_path / "dir.png"
     d.mkdir()
     return d
+
+
+def test_saved_pictures_get_ordinary_permissions(tmp_path):
+    fig = new_figure(1, 1)
+    out = save_figure(fig, tmp_path / "p.png")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~mask

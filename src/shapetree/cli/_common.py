@@ -140,6 +140,7 @@ def write_json(path: str | os.PathLike[str], data: Any) -> Path:
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
+        os.chmod(tmp, _file_mode())  # mkstemp makes 0600; use the usual umask
         os.replace(tmp, p)
     except BaseException:
         try:
@@ -174,3 +175,10 @@ def info(msg: str = "") -> None:
 def warn(msg: str) -> None:
     """Print a line to stderr."""
     print(f"shapetree: {msg}", file=sys.stderr, flush=True)
+
+
+def _file_mode() -> int:
+    """Permissions a plain ``open(path, "w")`` would give (0666 minus the umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask

@@ -47,10 +47,12 @@ DEFORM_EPILOG = """\
 examples:
   shapetree deform demo:hand -o deform.png
   shapetree deform demo:square --scale 0.02 0.05 0.1 --count 6 --seed 3
+  shapetree deform demo:hand demo:square demo:leaf demo:G --scale 0.04   # like Fig. 4
   shapetree deform leaf.png --points 80 --scale 0.04 -o leaf-deform.png
 
 Each row adds independent Gaussian noise of standard deviation S to every node's
-Bookstein coordinate and reconstructs the curve (paper Fig. 4).
+Bookstein coordinate and reconstructs the curve (paper Fig. 4); one row per shape and
+scale.
 """
 
 
@@ -134,7 +136,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         epilog=DEFORM_EPILOG,
         formatter_class=Formatter,
     )
-    p.add_argument("shape", metavar="SHAPE", help=SHAPE_HELP)
+    p.add_argument(
+        "shape", metavar="SHAPE", nargs="+", help=SHAPE_HELP + "; several give several rows"
+    )
     _add_points(p, default=DEFAULT_POINTS)
     p.add_argument(
         "--scale",
@@ -277,16 +281,23 @@ def cmd_deform(args: argparse.Namespace) -> int:
     from shapetree.plotting import check_figure_path, plot_deformations
     from shapetree.tree import build_shape_tree
 
-    shape = load_shape(args.shape, n_points=args.points, closed=not args.open)
-    out = Path(args.output) if args.output else _default_output(shape.label, "deform")
+    shapes = [load_shape(s, n_points=args.points, closed=not args.open) for s in args.shape]
+    out = Path(args.output) if args.output else _default_output(shapes[0].label, "deform")
     check_figure_path(out)
-    tree = build_shape_tree(shape.points, closed=shape.closed, split=args.split)
+    trees = [build_shape_tree(s.points, closed=s.closed, split=args.split) for s in shapes]
     plot_deformations(
-        tree, list(args.scale), args.count, args.seed, path=out, invert_y=shape.image_coords
+        trees,
+        list(args.scale),
+        args.count,
+        args.seed,
+        path=out,
+        names=[s.label.removeprefix("glyph-") for s in shapes] if len(shapes) > 1 else None,
+        invert_y=[s.image_coords for s in shapes],
     )
     info(
-        f"{len(args.scale)} x {args.count} deformations of {args.shape} "
-        f"(scales {', '.join(f'{s:g}' for s in args.scale)}, seed {args.seed})"
+        f"{len(trees) * len(args.scale)} x {args.count} deformations of "
+        f"{', '.join(args.shape)} (scales {', '.join(f'{s:g}' for s in args.scale)}, "
+        f"seed {args.seed})"
     )
     info(f"picture: {out}")
     return 0

@@ -402,7 +402,8 @@ def plot_deformations(
     rng: np.random.Generator | int | None = None,
     *,
     path: PathArg | None = None,
-    invert_y: bool = False,
+    names: Sequence[str] | None = None,
+    invert_y: bool | Sequence[bool] = False,
     panel_size: float = 1.5,
     title: str | None = None,
     dpi: float = 150,
@@ -424,8 +425,10 @@ def plot_deformations(
     rng : numpy Generator or int seed, optional
     path : path-like, optional
         Save the figure there (atomically).
-    invert_y : bool, default False
-        Flip ``y`` (image coordinates).
+    names : sequence of str, optional
+        One name per tree, shown in the row labels.
+    invert_y : bool or sequence of bool, default False
+        Flip ``y`` (image coordinates); a sequence gives one flag per tree.
     panel_size : float, default 1.5
         Size of one panel in inches.
     title : str, optional
@@ -451,15 +454,19 @@ def plot_deformations(
         scale_list = list(scales)
     if n < 1:
         raise ShapeTreeError(f"number of deformations must be >= 1, got {n}")
+    flips = [invert_y] * len(trees) if isinstance(invert_y, bool) else list(invert_y)
+    labels = list(names) if names is not None else [""] * len(trees)
+    if len(flips) != len(trees) or len(labels) != len(trees):
+        raise ShapeTreeError("names and invert_y need one entry per shape-tree")
     gen = np.random.default_rng(rng)
-    rows = [(t, s) for t in trees for s in scale_list]
+    rows = [(i, t, s) for i, t in enumerate(trees) for s in scale_list]
     fig = new_figure(panel_size * (n + 1) + 0.6, panel_size * len(rows) + 0.5)
     axes = fig.subplots(len(rows), n + 1, squeeze=False)
-    for r, (t, s) in enumerate(rows):
+    for r, (i, t, s) in enumerate(rows):
         curves = [t.points] + [deform(t, s, rng=gen) for _ in range(n)]
         for c, pts in enumerate(curves):
             ax = axes[r, c]
-            p = _closed_path(_normalise(pts, invert_y), t.closed)
+            p = _closed_path(_normalise(pts, bool(flips[i])), t.closed)
             colour = CURVE_COLOR if c == 0 else DEFORM_COLOR
             ax.fill(p[:, 0], p[:, 1], color=colour, alpha=0.08 if c else 0.12, lw=0)
             ax.plot(p[:, 0], p[:, 1], color=colour, lw=1.3)
@@ -469,6 +476,8 @@ def plot_deformations(
         label = "σ = " + (
             f"{float(s):g}" if np.ndim(s) == 0 else ", ".join(f"{v:g}" for v in np.ravel(s))
         )
+        if labels[i]:
+            label = f"{labels[i]}\n{label}"
         axes[r, 0].set_ylabel(label, fontsize=9)
         if r == 0:
             axes[r, 0].set_title("original", fontsize=9)

@@ -96,6 +96,7 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: float = 150) 
     try:
         with os.fdopen(fd, "wb") as fh:
             fig.savefig(fh, format=fmt, dpi=dpi, facecolor="white")
+        os.chmod(tmp, _file_mode())  # mkstemp makes 0600; use the usual umask
         os.replace(tmp, p)
     except BaseException:
         try:
@@ -104,3 +105,10 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: float = 150) 
             pass
         raise
     return p
+
+
+def _file_mode() -> int:
+    """Permissions a plain ``open(path, "w")`` would give (0666 minus the umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
