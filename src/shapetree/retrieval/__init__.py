@@ -1,6 +1,7 @@
 """All-pairs shape-tree distances (cached, resumable) and the retrieval protocols of §5.1."""
 
 from shapetree.retrieval._engine import (
+    SYMMETRIZE,
     DistanceParams,
     combine,
     directed_costs,
@@ -29,6 +30,7 @@ __all__ = [
     "DATASET_DEFAULTS",
     "EVAL_PARAMS",
     "PAPER_TABLES",
+    "SYMMETRIZE",
     "DistanceParams",
     "bullseye",
     "bullseye_per_class",

@@ -150,7 +150,7 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "symmetrize": "none",
     },
     "mpeg7": {
-        "n_points": 50,
+        "n_points": 40,
         "weight": 1.0,
         "occlusion": None,
         "n_trees": 1,
@@ -159,7 +159,7 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "symmetrize": "none",
     },
     "swedish_leaf": {
-        "n_points": 50,
+        "n_points": 40,
         "weight": 1.0,
         "occlusion": None,
         "n_trees": 1,
@@ -345,13 +345,13 @@ def evaluate(
             f"{len(labels)} shapes, {stats.get('pairs', 0)} ordered pairs "
             f"({stats.get('pairs_computed', 0)} computed now), matrix {seconds_matrix:.1f} s"
         )
-    pictures = []
+    pictures: list[str] = []
     if out_dir is not None:
         from shapetree.retrieval._figures import plot_bullseye_per_class, plot_retrieval_grid
 
         out = Path(out_dir)
         pictures.append(
-            str(
+            Path(
                 plot_retrieval_grid(
                     D,
                     labels,
@@ -360,17 +360,17 @@ def evaluate(
                     n_top=p["n_show"],
                     title=f"{name}: queries (left) and nearest shapes, wrong class in red",
                 )
-            )
+            ).name
         )
         if name == "mpeg7":
             pictures.append(
-                str(
+                Path(
                     plot_bullseye_per_class(
                         rec["bullseye_per_class"],
                         out / f"{name}_bullseye_per_class.png",
                         overall=rec["bullseye"],
                     )
-                )
+                ).name
             )
     rec.update(
         {
@@ -388,7 +388,7 @@ def evaluate(
             "paper": PAPER_TABLES[name]["rows"][0][1],
             "paper_table": PAPER_TABLES[name]["rows"],
             "table": table,
-            "pictures": pictures,
+            "pictures": pictures,  # file names inside out_dir
         }
     )
     if json_path is not None:
