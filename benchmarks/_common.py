@@ -6,8 +6,9 @@ import json
 import os
 import platform
 import sys
-import tempfile
 from pathlib import Path
+
+from shapetree._atomic import atomic_open
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -37,9 +38,6 @@ def machine() -> dict:
 
 def write_json(path: Path, data: dict) -> None:
     """Write ``data`` as JSON atomically (temporary file, then rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
+    with atomic_open(path, "w") as fh:
         json.dump(data, fh, indent=2)
         fh.write("\n")
-    os.replace(tmp, path)

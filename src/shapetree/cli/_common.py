@@ -7,13 +7,13 @@ import json
 import math
 import os
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from shapetree._atomic import atomic_open
 from shapetree._errors import ShapeTreeError
 
 #: Prefix that names an embedded demo shape instead of a file (``demo:hand``, ``demo:G``).
@@ -136,18 +136,8 @@ def write_json(path: str | os.PathLike[str], data: Any) -> Path:
     parent = p.parent if str(p.parent) else Path(".")
     parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps(_jsonable(data), indent=2, allow_nan=False) + "\n"
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{p.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.chmod(tmp, _file_mode())  # mkstemp makes 0600; use the usual umask
-        os.replace(tmp, p)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_open(p, "w") as fh:
+        fh.write(text)
     return p
 
 
@@ -175,10 +165,3 @@ def info(msg: str = "") -> None:
 def warn(msg: str) -> None:
     """Print a line to stderr."""
     print(f"shapetree: {msg}", file=sys.stderr, flush=True)
-
-
-def _file_mode() -> int:
-    """Permissions a plain ``open(path, "w")`` would give (0666 minus the umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask

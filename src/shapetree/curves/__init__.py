@@ -8,7 +8,7 @@ clockwise on screen.
 
 from shapetree.curves._image import curve_from_image
 from shapetree.curves._io import load_curve, load_points
-from shapetree.curves._resample import resample
+from shapetree.curves._resample import point_at, resample
 from shapetree.curves._validate import as_curve, curve_length, orient, signed_area
 
 __all__ = [
@@ -18,6 +18,7 @@ __all__ = [
     "load_curve",
     "load_points",
     "orient",
+    "point_at",
     "resample",
     "signed_area",
 ]

@@ -56,3 +56,34 @@ def resample(points: ArrayLike, n: int, *, closed: bool) -> np.ndarray:
     if not closed:
         out[-1] = arr[-1]
     return out
+
+
+def point_at(points: ArrayLike, pos: ArrayLike, *, closed: bool) -> np.ndarray:
+    """Points at fractional sample indices along a polyline.
+
+    ``pos = j + t`` (``0 <= t < 1``) is the point ``(1 - t) p_j + t p_{j+1}``; this is how
+    matching results give positions along a curve (``MatchResult.a_to_b``).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+    pos : array_like, shape (k,)
+        Fractional indices (taken modulo ``n`` for closed curves, clipped for open ones).
+    closed : bool
+
+    Returns
+    -------
+    ndarray, shape (k, 2)
+    """
+    pts = np.asarray(points, dtype=float)
+    q = np.asarray(pos, dtype=float)
+    n = pts.shape[0]
+    i0 = np.floor(q).astype(int)
+    t = (q - i0)[:, None]
+    if closed:
+        i0 %= n
+        i1 = (i0 + 1) % n
+    else:
+        i0 = np.clip(i0, 0, n - 1)
+        i1 = np.minimum(i0 + 1, n - 1)
+    return (1 - t) * pts[i0] + t * pts[i1]

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
-from shapetree.curves import as_curve, resample
+from shapetree.curves import as_curve, point_at, resample
 from shapetree.matching._kernels import closed_root_min, fill_tables
 from shapetree.matching._prepare import (
     Model,
@@ -93,20 +93,7 @@ class MatchResult:
     def pairs(self) -> np.ndarray:
         """Matched point pairs ``(x_a, y_a, x_b, y_b)`` for every non-replaced ``A`` point."""
         ok = np.isfinite(self.a_to_b)
-        return np.hstack([self.a[ok], _interp(self.b, self.a_to_b[ok], self.closed)])
-
-
-def _interp(pts: np.ndarray, pos: np.ndarray, closed: bool) -> np.ndarray:
-    m = pts.shape[0]
-    i0 = np.floor(pos).astype(int)
-    t = (pos - i0)[:, None]
-    if closed:
-        i0 %= m
-        i1 = (i0 + 1) % m
-    else:
-        i0 = np.clip(i0, 0, m - 1)
-        i1 = np.minimum(i0 + 1, m - 1)
-    return (1 - t) * pts[i0] + t * pts[i1]
+        return np.hstack([self.a[ok], point_at(self.b, self.a_to_b[ok], closed=self.closed)])
 
 
 def _bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray, np.ndarray]:

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
+from shapetree.curves import point_at
 from shapetree.plotting._save import check_figure_path, new_figure, save_figure
 
 __all__ = [
@@ -189,7 +190,7 @@ def plot_match(
     if ok.size:
         k = min(int(max_lines), ok.size)
         pick = ok[np.unique(np.round(np.linspace(0, ok.size - 1, k)).astype(int))] if k else ok[:0]
-        pb = _interp(b, a_to_b[pick], closed)
+        pb = point_at(b, a_to_b[pick], closed=closed)
         pa = a[pick]
         col = colours(pick / max(n - 1, 1))
         segs = np.stack([pa, pb], axis=1)
@@ -277,19 +278,6 @@ def _colormap(name: str):
         raise ShapeTreeError(f"unknown colour map {name!r}") from None
     # keep away from the palest end so lines stay visible on white
     return lambda t: cm(0.05 + 0.8 * np.asarray(t, dtype=float))
-
-
-def _interp(pts: np.ndarray, pos: np.ndarray, closed: bool) -> np.ndarray:
-    m = pts.shape[0]
-    i0 = np.floor(pos).astype(int)
-    t = (pos - i0)[:, None]
-    if closed:
-        i0 %= m
-        i1 = (i0 + 1) % m
-    else:
-        i0 = np.clip(i0, 0, m - 1)
-        i1 = np.minimum(i0 + 1, m - 1)
-    return (1 - t) * pts[i0] + t * pts[i1]
 
 
 def _grid(k: int, ncols: int | None) -> tuple[int, int]:

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from shapetree._atomic import atomic_open
 from shapetree._errors import ShapeTreeError
 
 __all__ = ["new_figure", "save_figure", "check_figure_path"]
@@ -92,23 +92,6 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: float = 150) 
     fmt = {"jpg": "jpeg", "tif": "tiff"}.get(fmt, fmt)
     parent = p.parent if str(p.parent) else Path(".")
     parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{p.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format=fmt, dpi=dpi, facecolor="white")
-        os.chmod(tmp, _file_mode())  # mkstemp makes 0600; use the usual umask
-        os.replace(tmp, p)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_open(p, "wb") as fh:
+        fig.savefig(fh, format=fmt, dpi=dpi, facecolor="white")
     return p
-
-
-def _file_mode() -> int:
-    """Permissions a plain ``open(path, "w")`` would give (0666 minus the umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
