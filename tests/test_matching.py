@@ -165,10 +165,12 @@ def test_several_trees_take_the_best():
     res = match(a, b, n_trees=4)
     assert len(res.costs) == 4
     assert res.cost == pytest.approx(res.costs.min())
-    for t in range(4):  # each entry is the cost of a single tree started at offset t*n/4
-        model = prepare_model(np.roll(a, -(t * 32) // 4, axis=0))
+    for t in range(4):  # each entry is the cost of a single tree started at offset t*n/8
+        model = prepare_model(np.roll(a, -(t * 32) // 8, axis=0))
         assert match_cost(model, prepare_target(b)) == pytest.approx(res.costs[t], rel=1e-9)
     assert res.cost <= match(a, b).cost + 1e-12
+    # trees are really different: a tree started half-way round would repeat the first
+    assert len(set(np.round(res.costs, 12))) == 4
 
 
 def test_occlusion_replaces_a_missing_part():

@@ -30,8 +30,9 @@ Interpretations of the paper (where its text is terse)
    ``κ λ_{A'} (|A'| + |B'|)`` with lengths relative to the curves' total lengths; the
    replaced ranges are reported and their interior points get no correspondence (NaN).
 7. **Several shape-trees.** Closed curves: the same midpoint rule started at ``T``
-   evenly spaced points (offsets ``t n / T``). Open curves (endpoints fixed): the two
-   midpoint rules, ``"half"`` and ``"best"``.
+   different points, offsets ``t n / (2T)`` (a tree cuts the curve at ``a_0`` and
+   ``a_{n/2}``, so a tree started half-way round would repeat one). Open curves (endpoints
+   fixed): the two midpoint rules, ``"half"`` and ``"best"``.
 8. **Pruned mode** (not in the paper, off by default): ``MatchParams(band=r)`` restricts a
    subcurve of ``k`` segments to target subcurves of about ``k m / n`` segments, within
    a stretch factor ``r``.

@@ -178,8 +178,10 @@ class Model:
 def tree_variants(n: int, closed: bool, n_trees: int, split: str) -> list[dict]:
     """Keyword arguments of :func:`build_shape_tree` for ``n_trees`` different trees.
 
-    Closed curves: the same midpoint rule started at ``n_trees`` evenly spaced points
-    (offsets ``t * n // n_trees``), so each tree cuts the curve into different subtrees.
+    Closed curves: the same midpoint rule started at ``n_trees`` different points. A closed
+    tree is cut at ``a_0`` and ``a_{n/2}``, so starting half-way round gives the same cut:
+    the offsets ``t n / (2 n_trees)``, ``t = 0 .. n_trees - 1``, spread the cuts over half
+    the curve, which makes every tree different.
     Open curves (endpoints are fixed): the alternative midpoint rule(s).
     """
     if n_trees < 1:
@@ -187,7 +189,10 @@ def tree_variants(n: int, closed: bool, n_trees: int, split: str) -> list[dict]:
     if split not in SPLITS:
         raise ShapeTreeError(f"unknown midpoint rule split={split!r}; use one of {SPLITS}")
     if closed:
-        return [{"split": split, "offset": (t * n) // n_trees} for t in range(n_trees)]
+        offsets = sorted({(t * n) // (2 * n_trees) for t in range(n_trees)})
+        if len(offsets) < n_trees:
+            raise ShapeTreeError(f"a closed curve of {n} points has fewer than {n_trees} trees")
+        return [{"split": split, "offset": o} for o in offsets]
     rules = [split] + [s for s in SPLITS if s != split]
     if n_trees > len(rules):
         raise ShapeTreeError(
@@ -212,7 +217,7 @@ def prepare_model(
     points : array_like, shape (n, 2)
     closed : bool
     n_trees : int
-        Number of different shape-trees (closed: start offsets ``t n / n_trees``).
+        Number of different shape-trees (closed: start offsets ``t n / (2 n_trees)``).
     split : {"half", "best"}
         Midpoint rule (see :func:`shapetree.tree.build_shape_tree`).
     weight : float
