@@ -52,6 +52,24 @@ def test_kernel_equals_reference_on_random_curves(closed, split, occlusion):
         assert fast == pytest.approx(ref, rel=1e-9, abs=1e-12)
 
 
+@pytest.mark.parametrize("power", [0.5, 2.0])
+def test_kernel_equals_reference_with_length_power(power):
+    rng = np.random.default_rng(int(power * 10))
+    for closed in (False, True):
+        for occlusion in (None, 0.7):
+            a, b = blob(9, rng, closed=closed), blob(8, rng, closed=closed)
+            tree = build_shape_tree(a, closed=closed)
+            ref = reference_match_cost(tree, b, occlusion=occlusion, power=power)
+            fast = match_prepared(
+                prepare_model(a, closed=closed, length_power=power),
+                prepare_target(b, closed=closed, length_power=power),
+                MatchParams(occlusion=occlusion),
+            ).cost
+            assert fast == pytest.approx(ref, rel=1e-9, abs=1e-12)
+    with pytest.raises(ShapeTreeError, match="length_power"):
+        match_cost(prepare_model(a, length_power=power), prepare_target(b))
+
+
 def test_subcurve_table_equals_reference():
     rng = np.random.default_rng(11)
     for occlusion in (None, 0.5):

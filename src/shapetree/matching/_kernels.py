@@ -191,7 +191,7 @@ def closed_root_min(t1: np.ndarray, er2: np.ndarray) -> tuple[float, int, int]:
 
 @njit(cache=True, fastmath=False, nogil=True)
 def target_tables(
-    bx: np.ndarray, by: np.ndarray, cyclic: bool
+    bx: np.ndarray, by: np.ndarray, cyclic: bool, power: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per-target precomputation: triangle shapes, base-case costs and subcurve lengths.
 
@@ -200,6 +200,8 @@ def target_tables(
     bx, by : float64 (m,)
         Target points.
     cyclic : bool
+    power : float
+        λ exponent (a piece of ``l`` of the ``L`` segments weighs ``(l / L) ** power``).
 
     Returns
     -------
@@ -270,6 +272,6 @@ def target_tables(
             ip_im = c2 * z2i[length, kk, s]
             dif = max(1.0 - ip_re * ip_re - ip_im * ip_im, 0.0)
             right = (s + kk) % m
-            h[length, s] = h[kk, s] + h[length - kk, right] + length * dif
-            g[length, s] = h[length, s] / length
+            h[length, s] = h[kk, s] + h[length - kk, right] + length**power * dif
+            g[length, s] = h[length, s] / length**power
     return z1, z2r, z2i, g, blen

@@ -302,11 +302,7 @@ def match_prepared(
     MatchResult
     """
     params = params or MatchParams()
-    if model.closed != target.closed:
-        raise ShapeTreeError(
-            "model and target must both be closed or both open "
-            f"(model closed={model.closed}, target closed={target.closed})"
-        )
+    _check_pair(model, target)
     costs = np.empty(len(model.trees))
     best = None
     for t, td in enumerate(model.trees):
@@ -337,9 +333,23 @@ def match_prepared(
     )
 
 
+def _check_pair(model: Model, target: Target) -> None:
+    if model.closed != target.closed:
+        raise ShapeTreeError(
+            "model and target must both be closed or both open "
+            f"(model closed={model.closed}, target closed={target.closed})"
+        )
+    if model.length_power != target.length_power:
+        raise ShapeTreeError(
+            f"model and target were prepared with different length_power "
+            f"({model.length_power} and {target.length_power})"
+        )
+
+
 def match_cost(model: Model, target: Target, params: MatchParams | None = None) -> float:
     """ψ(A, B) only (no traceback): the fast path for distance matrices."""
     params = params or MatchParams()
+    _check_pair(model, target)
     best = np.inf
     for td in model.trees:
         s_tab, er_tab = _fill(td, target, params)
@@ -357,6 +367,7 @@ def match(
     occlusion: float | None = None,
     n_trees: int = 1,
     split: str = "half",
+    length_power: float = 1.0,
 ) -> MatchResult:
     """Deform curve ``a`` onto curve ``b`` with minimum shape-tree deformation (eq. 1).
 
@@ -377,6 +388,8 @@ def match(
         Number of shape-trees of ``a`` tried (best taken).
     split : {"half", "best"}
         Midpoint rule.
+    length_power : float
+        λ grows as the subcurve's relative length to this power (paper: 1).
 
     Returns
     -------
@@ -395,8 +408,10 @@ def match(
     if n_points is not None:
         a = resample(a, n_points, closed=closed)
         b = resample(b, n_points, closed=closed)
-    model = prepare_model(a, closed=closed, n_trees=n_trees, split=split, weight=weight)
-    target = prepare_target(b, closed=closed)
+    model = prepare_model(
+        a, closed=closed, n_trees=n_trees, split=split, weight=weight, length_power=length_power
+    )
+    target = prepare_target(b, closed=closed, length_power=length_power)
     return match_prepared(model, target, MatchParams(occlusion=occlusion))
 
 
@@ -440,7 +455,7 @@ def subcurve_table(
     )
     if tree.closed:
         raise ShapeTreeError("subcurve_table needs an open contour")
-    td = tree_data(tree, weight=weight, length_scale=length_scale)
+    td = tree_data(tree, weight=weight, length_scale=length_scale, power=target.length_power)
     s_tab, _ = _fill(td, target, MatchParams(occlusion=occlusion))
     out = s_tab[tree.roots[0]].T.copy()
     out[:, 0] = np.inf

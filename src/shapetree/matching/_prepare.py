@@ -45,6 +45,8 @@ class Target:
         ``L + 1`` points and matched point for point to ``B[s..s+L]``.
     blen : ndarray, shape (m, m)
         ``blen[L, s]``: arclength of ``B[s..s+L]`` relative to the length of ``B``.
+    length_power : float
+        λ exponent the base-case table ``g`` was made for (see :func:`prepare_model`).
     """
 
     points: np.ndarray
@@ -54,13 +56,14 @@ class Target:
     z2i: np.ndarray
     g: np.ndarray
     blen: np.ndarray
+    length_power: float = 1.0
 
     @property
     def n_points(self) -> int:
         return int(self.points.shape[0])
 
 
-def prepare_target(points: ArrayLike, *, closed: bool = True) -> Target:
+def prepare_target(points: ArrayLike, *, closed: bool = True, length_power: float = 1.0) -> Target:
     """Precompute the target-side data of eq. (1) for curve ``B``.
 
     Parameters
@@ -69,16 +72,29 @@ def prepare_target(points: ArrayLike, *, closed: bool = True) -> Target:
         Sample points of ``B`` (``m >= 3``).
     closed : bool
         Whether ``B`` is closed (its subcurves then wrap around).
+    length_power : float
+        Must equal the model's (:func:`prepare_model`); it shapes the base-case table.
 
     Returns
     -------
     Target
     """
     b = as_curve(points, closed=closed, name="target curve")
+    if not (np.isfinite(length_power) and length_power >= 0):
+        raise ShapeTreeError(f"length_power must be a number >= 0, got {length_power}")
     z1, z2r, z2i, g, blen = target_tables(
-        np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]), closed
+        np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]), closed, float(length_power)
     )
-    return Target(points=b, closed=closed, z1=z1, z2r=z2r, z2i=z2i, g=g, blen=blen)
+    return Target(
+        points=b,
+        closed=closed,
+        z1=z1,
+        z2r=z2r,
+        z2i=z2i,
+        g=g,
+        blen=blen,
+        length_power=float(length_power),
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,8 +127,13 @@ class TreeData:
         return int(self.lam.shape[0] + np.searchsorted(self.seg_start, seg))
 
 
-def tree_data(tree: ShapeTree, *, weight: float, length_scale: float | None) -> TreeData:
-    """Lay out the per-node constants of ``tree`` for :func:`fill_tables`."""
+def tree_data(
+    tree: ShapeTree, *, weight: float, length_scale: float | None, power: float = 1.0
+) -> TreeData:
+    """Lay out the per-node constants of ``tree`` for :func:`fill_tables`.
+
+    λ of a node is ``weight * (arclength / length_scale) ** power`` (the paper: power 1).
+    """
     u = tree.unrolled
     seglen = np.hypot(*np.diff(u, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seglen)])
@@ -123,7 +144,7 @@ def tree_data(tree: ShapeTree, *, weight: float, length_scale: float | None) -> 
     n_seg = u.shape[0] - 1
     seg_start = np.arange(n_seg)
     alen = (cum[tree.end] - cum[tree.start]) / scale
-    lam = weight * alen
+    lam = weight * alen**power
     w = tree.coords[:, 0] + 1j * tree.coords[:, 1]
     a1, a2 = _helmert_from_bookstein(w)
     # cost of each node's own triangle against a straight, evenly subdivided segment
@@ -150,7 +171,7 @@ def tree_data(tree: ShapeTree, *, weight: float, length_scale: float | None) -> 
         flat=flat,
         alen=alen,
         seg_start=seg_start,
-        seg_lam=weight * seg_alen,
+        seg_lam=weight * seg_alen**power,
         seg_alen=seg_alen,
     )
 
@@ -173,6 +194,7 @@ class Model:
     closed: bool
     trees: list[TreeData]
     weight: float
+    length_power: float = 1.0
 
 
 def tree_variants(n: int, closed: bool, n_trees: int, split: str) -> list[dict]:
@@ -209,6 +231,7 @@ def prepare_model(
     split: str = "half",
     weight: float = 1.0,
     length_scale: float | None = None,
+    length_power: float = 1.0,
 ) -> Model:
     """Build the shape-tree(s) of curve ``A`` and their kernel constants.
 
@@ -225,6 +248,10 @@ def prepare_model(
     length_scale : float, optional
         Length that normalises λ; default the length of ``A``, which makes costs
         invariant to scaling ``A``.
+    length_power : float
+        λ of a node is ``weight * (arclength(A') / length_scale) ** length_power``. The
+        paper uses 1 (λ proportional to the subcurve's length); larger values weigh the
+        coarse, global nodes more against the fine ones.
 
     Returns
     -------
@@ -233,10 +260,21 @@ def prepare_model(
     a = as_curve(points, closed=closed, name="model curve")
     if not (np.isfinite(weight) and weight > 0):
         raise ShapeTreeError(f"weight must be a positive number, got {weight}")
+    if not (np.isfinite(length_power) and length_power >= 0):
+        raise ShapeTreeError(f"length_power must be a number >= 0, got {length_power}")
     trees = [
         tree_data(
-            build_shape_tree(a, closed=closed, **kw), weight=weight, length_scale=length_scale
+            build_shape_tree(a, closed=closed, **kw),
+            weight=weight,
+            length_scale=length_scale,
+            power=length_power,
         )
         for kw in tree_variants(a.shape[0], closed, n_trees, split)
     ]
-    return Model(points=a, closed=closed, trees=trees, weight=float(weight))
+    return Model(
+        points=a,
+        closed=closed,
+        trees=trees,
+        weight=float(weight),
+        length_power=float(length_power),
+    )

@@ -23,7 +23,12 @@ def _arclen(p: np.ndarray) -> float:
 
 
 def _identity_cost(
-    p: np.ndarray, q: np.ndarray, weight: float, scale: float, mids: dict[tuple[int, int], int]
+    p: np.ndarray,
+    q: np.ndarray,
+    weight: float,
+    scale: float,
+    mids: dict[tuple[int, int], int],
+    power: float = 1.0,
 ) -> float:
     """Cost of deforming ``p`` onto ``q`` point for point (same length), over a tree of ``p``.
 
@@ -37,7 +42,7 @@ def _identity_cost(
         if e - s < 2:
             continue
         i = mids[(s, e)]
-        lam = weight * _arclen(p[s : e + 1]) / scale
+        lam = weight * (_arclen(p[s : e + 1]) / scale) ** power
         total += lam * float(triangle_dif(p[[s, i, e]], q[[s, i, e]]))
         stack += [(s, i), (i, e)]
     return total
@@ -85,6 +90,7 @@ class ReferenceMatcher:
         weight: float = 1.0,
         occlusion: float | None = None,
         length_scale: float | None = None,
+        power: float = 1.0,
     ) -> None:
         self.tree = tree
         self.u = tree.unrolled
@@ -92,6 +98,7 @@ class ReferenceMatcher:
         self.m = len(self.b)
         self.cyclic = cyclic
         self.weight = weight
+        self.power = power
         self.occlusion = occlusion
         self.la = length_scale if length_scale is not None else _arclen(self.u)
         bb = np.vstack([self.b, self.b[:1]]) if cyclic else self.b
@@ -111,7 +118,7 @@ class ReferenceMatcher:
     def _replace(self, sa: int, ea: int, s: int, length: int) -> float:
         a_len = _arclen(self.u[sa : ea + 1]) / self.la
         b_len = _arclen(self.b_sub(s, length)) / self.lb
-        return self.occlusion * self.weight * a_len * (a_len + b_len)
+        return self.occlusion * self.weight * a_len**self.power * (a_len + b_len)
 
     def _psi(self, sa: int, ea: int, s: int, length: int) -> float:
         """ψ(U[sa..ea], B[s..s+length])."""
@@ -124,7 +131,9 @@ class ReferenceMatcher:
                 # subdivide A's segment to as many points as B' and match point for point
                 t = np.linspace(0.0, 1.0, length + 1)[:, None]
                 seg = a[0] + t * (a[1] - a[0])
-                cost = _identity_cost(seg, bsub, self.weight, self.la, _half_mids(length + 1))
+                cost = _identity_cost(
+                    seg, bsub, self.weight, self.la, _half_mids(length + 1), self.power
+                )
         elif length == 1:
             # subdivide B's segment to as many points as A' and match point for point
             k = ea - sa + 1
@@ -135,10 +144,10 @@ class ReferenceMatcher:
                 for (s0, e0), i in self.mids.items()
                 if sa <= s0 and e0 <= ea
             }
-            cost = _identity_cost(a, seg, self.weight, self.la, mids)
+            cost = _identity_cost(a, seg, self.weight, self.la, mids, self.power)
         else:
             i = self.mids[(sa, ea)]
-            lam = self.weight * _arclen(a) / self.la
+            lam = self.weight * (_arclen(a) / self.la) ** self.power
             cost = math.inf
             for j in range(1, length):
                 tri_b = bsub[[0, j, length]]
@@ -162,6 +171,7 @@ def reference_match_cost(
     *,
     weight: float = 1.0,
     occlusion: float | None = None,
+    power: float = 1.0,
 ) -> float:
     """ψ(A, B) by the literal recursion: open A vs open B, or closed A vs closed B.
 
@@ -176,7 +186,9 @@ def reference_match_cost(
     -------
     float
     """
-    rm = ReferenceMatcher(tree, b, cyclic=tree.closed, weight=weight, occlusion=occlusion)
+    rm = ReferenceMatcher(
+        tree, b, cyclic=tree.closed, weight=weight, occlusion=occlusion, power=power
+    )
     m = rm.m
     if not tree.closed:
         return rm.psi(0, tree.n_points - 1, 0, m - 1)
