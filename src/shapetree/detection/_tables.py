@@ -9,32 +9,15 @@ so ``T`` is a pure shape cost, independent of the contour's size.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from shapetree._errors import ShapeTreeError
+from shapetree.matching import prepare_target, subcurve_table
 
-__all__ = ["contour_tables", "backend"]
-
-
-def backend() -> tuple[Callable[..., Any], Callable[..., NDArray[np.float64]]]:
-    """Return ``(prepare_target, subcurve_table)`` from :mod:`shapetree.matching`.
-
-    Raises
-    ------
-    ShapeTreeError
-        If the matching sub-package does not provide them.
-    """
-    try:
-        from shapetree.matching import prepare_target, subcurve_table
-    except ImportError as exc:  # pragma: no cover - depends on the installed tree
-        raise ShapeTreeError(
-            "shapetree.matching.subcurve_table is not available; detection needs it"
-        ) from exc
-    return prepare_target, subcurve_table
+__all__ = ["contour_tables"]
 
 
 def contour_tables(
@@ -63,7 +46,6 @@ def contour_tables(
         through the same point) gets ``inf`` everywhere.  Cost:
         ``O(sum_i n_i * m^3)``.
     """
-    prepare_target, subcurve_table = backend()
     target = prepare_target(np.asarray(model_points, dtype=np.float64), closed=True)
     m = len(model_points)
     out = np.empty((2 * len(contours), m, m))
