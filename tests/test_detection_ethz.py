@@ -16,6 +16,7 @@ from shapetree.detection import (
     dr_at_fppi,
     dr_fppi_curve,
     load_model,
+    outline_strokes,
 )
 
 _DEFAULT = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets"
@@ -50,7 +51,14 @@ def test_models_from_outlines() -> None:
         assert m.points.shape == (30, 2)
         assert m.gap_weight.sum() == pytest.approx(1.0)
         if not closed:
-            assert (m.gap_weight == 0).any()  # free gaps on the closing chord
+            # segments on the free chords (between strokes, closing) weigh less
+            assert m.gap_weight.min() < 0.5 * m.gap_weight.max()
+    # the giraffe drawing: outer outline + a separate belly / inner-legs stroke, both kept
+    strokes, closed = outline_strokes(ROOT / "models" / "giraffe.tif")
+    assert closed is False and len(strokes) == 2
+    gir = load_model(ROOT / "models" / "giraffe.tif", m=40, all_strokes=True)
+    span = np.ptp(gir.curve, axis=0)
+    assert len(gir.curve) == sum(len(s) for s in strokes) and span.min() > 150
 
 
 @needs_data

@@ -22,7 +22,14 @@ from shapetree.detection._files import (
     plot_detection,
     plot_detection_run,
 )
-from shapetree.detection._model import DetectionModel, load_model, make_model, outline_from_image
+from shapetree.detection._model import (
+    DetectionModel,
+    chain_strokes,
+    load_model,
+    make_model,
+    outline_from_image,
+    outline_strokes,
+)
 from shapetree.detection._tables import contour_tables
 
 __all__ = [
@@ -31,6 +38,7 @@ __all__ = [
     "DetectionModel",
     "DetectionRun",
     "ETHZ_CLASSES",
+    "chain_strokes",
     "detect_to_files",
     "dr_at_fppi",
     "dr_fppi_curve",
@@ -47,6 +55,7 @@ __all__ = [
     "load_model",
     "make_model",
     "outline_from_image",
+    "outline_strokes",
     "resample_polyline",
     "trace_contours",
 ]

@@ -12,7 +12,14 @@ from scipy import ndimage
 
 from shapetree._errors import ImageError, ShapeTreeError
 
-__all__ = ["DetectionModel", "outline_from_image", "load_model", "make_model"]
+__all__ = [
+    "DetectionModel",
+    "chain_strokes",
+    "outline_from_image",
+    "outline_strokes",
+    "load_model",
+    "make_model",
+]
 
 _IMAGE_EXT = {".png", ".tif", ".tiff", ".pgm", ".pbm", ".bmp", ".jpg", ".jpeg", ".gif", ".ppm"}
 
@@ -88,25 +95,8 @@ def outline_from_image(
     ImageError
         If the drawing has no ink or the outline is too small.
     """
-    if isinstance(image, (str, os.PathLike)):
-        name = str(image)
-        arr = _read_grey(Path(image))
-    else:
-        arr = np.asarray(image, dtype=np.float64)
-    if arr.ndim == 3:
-        arr = arr[..., :3].mean(axis=2)
-    if arr.ndim != 2 or arr.size == 0:
-        raise ImageError(f"{name}: model image must be a 2-D image")
-    lo, hi = float(arr.min()), float(arr.max())
-    if hi - lo <= 0:
-        raise ImageError(f"{name}: model image is blank")
-    dark = arr < (lo + hi) / 2
-    ink = dark if dark.sum() <= (~dark).sum() else ~dark
-    lab, n = ndimage.label(ink, structure=np.ones((3, 3)))
-    if n == 0:
-        raise ImageError(f"{name}: model image has no outline pixels")
-    sizes = ndimage.sum(np.ones_like(lab), lab, index=np.arange(1, n + 1))
-    comp = lab == (1 + int(np.argmax(sizes)))
+    comps, name = _ink_components(image, name)
+    comp = comps[0]
     if comp.sum() < 8:
         raise ImageError(f"{name}: outline is too small ({int(comp.sum())} pixels)")
     filled = ndimage.binary_fill_holes(comp)
@@ -124,7 +114,11 @@ def outline_from_image(
         if area < 0:
             pts = pts[::-1]
         return np.ascontiguousarray(pts), True
-    # open outline: longest geodesic path through the skeleton
+    return _skeleton_path(comp), False
+
+
+def _skeleton_path(comp: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Longest geodesic path through the skeleton of one open stroke, ``(x, y)``, smoothed."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, dijkstra
     from skimage.morphology import skeletonize
@@ -164,7 +158,112 @@ def outline_from_image(
 
     sm = gaussian_filter1d(pts, 1.0, axis=0, mode="nearest")
     sm[0], sm[-1] = pts[0], pts[-1]
-    return np.ascontiguousarray(sm), False
+    return np.ascontiguousarray(sm)
+
+
+def _ink_components(image: ArrayLike | str | os.PathLike[str], name: str):
+    """Ink mask components of a drawing, largest first (list of bool masks)."""
+    if isinstance(image, (str, os.PathLike)):
+        name = str(image)
+        arr = _read_grey(Path(image))
+    else:
+        arr = np.asarray(image, dtype=np.float64)
+    if arr.ndim == 3:
+        arr = arr[..., :3].mean(axis=2)
+    if arr.ndim != 2 or arr.size == 0:
+        raise ImageError(f"{name}: model image must be a 2-D image")
+    lo, hi = float(arr.min()), float(arr.max())
+    if hi - lo <= 0:
+        raise ImageError(f"{name}: model image is blank")
+    dark = arr < (lo + hi) / 2
+    ink = dark if dark.sum() <= (~dark).sum() else ~dark
+    lab, n = ndimage.label(ink, structure=np.ones((3, 3)))
+    if n == 0:
+        raise ImageError(f"{name}: model image has no outline pixels")
+    sizes = ndimage.sum(np.ones_like(lab), lab, index=np.arange(1, n + 1))
+    order = np.argsort(-sizes, kind="stable")
+    return [lab == (1 + int(i)) for i in order], name
+
+
+def outline_strokes(
+    image: ArrayLike | str | os.PathLike[str],
+    *,
+    name: str = "model image",
+    min_share: float = 0.2,
+) -> tuple[list[NDArray[np.float64]], bool]:
+    """All strokes of an outline drawing: one closed outline, or several open strokes.
+
+    If the largest ink component encloses area, its outer boundary is returned
+    alone (as in :func:`outline_from_image`).  Otherwise the drawing is open
+    (e.g. the ETHZ giraffe: the outer outline plus a separate stroke for the
+    belly and inner legs) and every open ink component with at least
+    ``min_share`` of the largest one's pixels is returned as a skeleton path,
+    longest component first.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W), or path-like
+        Outline drawing (ink is the minority colour).
+    name : str
+        Used in error messages.
+    min_share : float
+        Smaller components (specks, text) are ignored (default 0.2).
+
+    Returns
+    -------
+    strokes : list of ndarray, each shape (n_i, 2)
+        ``(x, y)`` px.
+    closed : bool
+        True for a single closed outline.
+
+    Raises
+    ------
+    ImageError
+        As :func:`outline_from_image`.
+    """
+    main, closed = outline_from_image(image, name=name)
+    if closed:
+        return [main], True
+    comps, name = _ink_components(image, name)
+    strokes = [main]
+    big = comps[0].sum()
+    for comp in comps[1:]:
+        if comp.sum() < max(8, min_share * big):
+            break
+        filled = ndimage.binary_fill_holes(comp)
+        if filled.sum() > comp.sum() * 1.2 + 10:
+            continue  # a closed blob beside an open outline: ignored
+        strokes.append(_skeleton_path(comp))
+    return strokes, False
+
+
+def chain_strokes(
+    strokes: list[NDArray[np.float64]],
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Join open strokes into one closed loop by short artificial chords.
+
+    Starting from the first stroke, the stroke with the endpoint nearest to
+    the current end is appended next (reversed if needed).
+
+    Returns
+    -------
+    points : ndarray, shape (n, 2)
+        The loop (no repeated first point).
+    free : ndarray, shape (n,), bool
+        ``free[i]`` is True when segment ``points[i] -> points[(i+1) % n]`` is
+        an artificial chord (between strokes, or the closing one).
+    """
+    rest = [np.asarray(s, dtype=np.float64) for s in strokes[1:]]
+    parts = [np.asarray(strokes[0], dtype=np.float64)]
+    while rest:
+        end = parts[-1][-1]
+        d = [min(np.hypot(*(r[0] - end)), np.hypot(*(r[-1] - end))) for r in rest]
+        r = rest.pop(int(np.argmin(d)))
+        parts.append(r if np.hypot(*(r[0] - end)) <= np.hypot(*(r[-1] - end)) else r[::-1])
+    pts = np.vstack(parts)
+    free = np.zeros(len(pts), bool)
+    free[np.cumsum([len(q) for q in parts]) - 1] = True
+    return pts, free
 
 
 def _resample_closed(pts: NDArray[np.float64], m: int) -> tuple[NDArray, NDArray]:
@@ -178,7 +277,12 @@ def _resample_closed(pts: NDArray[np.float64], m: int) -> tuple[NDArray, NDArray
 
 
 def make_model(
-    curve: ArrayLike, *, closed: bool = True, m: int = 30, name: str = "model"
+    curve: ArrayLike,
+    *,
+    closed: bool = True,
+    m: int = 30,
+    name: str = "model",
+    free: ArrayLike | None = None,
 ) -> DetectionModel:
     """Prepare a model curve for detection.
 
@@ -193,6 +297,11 @@ def make_model(
         Number of samples for the contour tables and stitching (default 30).
     name : str
         Label.
+    free : array_like of bool, shape (n,), or None
+        Artificial segments: ``free[i]`` marks the segment from point ``i``
+        to point ``i + 1`` (the last one: back to point 0) as not part of the
+        drawing (e.g. chords joining strokes, see :func:`chain_strokes`); gaps
+        there cost nothing.  The closing chord of an open curve is always free.
 
     Returns
     -------
@@ -209,21 +318,24 @@ def make_model(
         raise ShapeTreeError(f"{name}: model curve must be a finite (n, 2) array with n >= 3")
     if m < 6:
         raise ShapeTreeError(f"m must be >= 6, got {m}")
+    fr = np.zeros(len(pts), bool) if free is None else np.asarray(free, dtype=bool).copy()
+    if fr.shape != (len(pts),):
+        raise ShapeTreeError(f"{name}: free must have one flag per curve point")
     if closed and np.allclose(pts[0], pts[-1]):
-        pts = pts[:-1]
+        pts, fr = pts[:-1], fr[:-1]
+    if not closed:
+        fr[-1] = True
     seg = np.hypot(*np.diff(np.vstack([pts, pts[:1]]), axis=0).T)
     total = seg.sum()
-    if total <= 0:
+    real = np.where(fr, 0.0, seg)
+    if total <= 0 or real.sum() <= 0:
         raise ShapeTreeError(f"{name}: model curve has zero length")
     samples, t = _resample_closed(pts, m)
-    if closed:
-        gw = np.full(m, 1.0 / m)
-    else:
-        real_len = total - seg[-1]
-        t_next = np.append(t[1:], total)
-        # share of each sample segment that lies on the real (non-chord) part
-        on_real = np.clip(np.minimum(t_next, real_len) - t, 0.0, None)
-        gw = on_real / max(real_len, 1e-12)
+    # share of each sample segment [t_i, t_i+1] that lies on the real (drawn) part
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    rcum = np.concatenate([[0.0], np.cumsum(real)])
+    r_at = np.interp(np.append(t, total), cum, rcum)
+    gw = np.diff(r_at) / rcum[-1]
     return DetectionModel(
         curve=pts, closed=bool(closed), points=samples, gap_weight=gw / gw.sum(), name=name
     )
@@ -234,6 +346,7 @@ def load_model(
     *,
     m: int = 30,
     closed: bool | None = None,
+    all_strokes: bool = False,
 ) -> DetectionModel:
     """Load a detection model from an outline drawing, a point file or an array.
 
@@ -241,12 +354,19 @@ def load_model(
     ----------
     source : path-like or array_like, shape (n, 2)
         An image file (``.png``, ``.tif``, ``.pgm``, ...) holding a drawn
-        outline (see :func:`outline_from_image`), a point file readable by
-        :func:`shapetree.curves.load_points`, or the points themselves.
+        outline (see :func:`outline_from_image` and ``all_strokes``), a point
+        file readable by :func:`shapetree.curves.load_points`, or the points
+        themselves.
     m : int
         Number of stitching samples (default 30).
     closed : bool or None
         Override closedness (default: detected for drawings, True otherwise).
+    all_strokes : bool
+        For an open drawing made of several strokes (like the ETHZ giraffe:
+        outer outline + a belly / inner-legs stroke), keep all of them, joined
+        by free chords (see :func:`outline_strokes`, :func:`chain_strokes`).
+        Default False: the longest stroke only, closed by a free chord (on
+        the ETHZ giraffes the extra stroke lowered the detection rate).
 
     Returns
     -------
@@ -257,7 +377,11 @@ def load_model(
     if isinstance(source, (str, os.PathLike)):
         p = Path(source)
         if p.suffix.lower() in _IMAGE_EXT:
-            pts, is_closed = outline_from_image(p)
+            strokes, is_closed = outline_strokes(p)
+            if all_strokes and len(strokes) > 1 and closed is not True:
+                pts, free = chain_strokes(strokes)
+                return make_model(pts, closed=False, m=m, name=p.stem, free=free)
+            pts = strokes[0]
         else:
             from shapetree.curves import load_points
 
