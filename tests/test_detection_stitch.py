@@ -131,3 +131,44 @@ def test_bad_inputs() -> None:
     with pytest.raises(ShapeTreeError):
         make_model(np.zeros((2, 2)))
     assert detect(model, None, contours=[]) == []
+
+
+def test_size_prior_prefers_object_sized_matches() -> None:
+    # the same complete outline twice: a 12-px speck (perimeter ~ 90 px) and a real-size copy
+    small = _place(_shape(_arc(0.0, 2 * np.pi - 0.05)), 0.3, 12.0, (60.0, 60.0))
+    large = _place(_shape(_arc(0.0, 2 * np.pi - 0.05)), 0.3, 60.0, (250.0, 200.0))
+    model = make_model(_shape(MODEL_T), m=24)
+    off = detect(model, None, contours=[small, large], k=2, size_cost=0.0, min_perimeter=0.0)
+    assert len(off) == 2  # both found when there is no size prior
+    on = detect(model, None, contours=[small, large], k=2)  # defaults: size prior on
+    assert on and on[0].bbox[0] > 150  # the large copy ranks first
+    assert all(d.bbox[0] > 150 for d in on) or on[-1].cost > on[0].cost + 0.2
+    # a piece implying a perimeter below min_perimeter / 2 is not used at all: the
+    # ~90 px speck may then only cover model shares f with 90 / f >= 200 px
+    cut = detect(model, None, contours=[small], k=2, min_perimeter=400.0, full_perimeter=800.0)
+    assert all(d.coverage < 0.5 for d in cut)
+
+
+def test_evidence_costs_terms() -> None:
+    from shapetree.detection import DetectParams
+    from shapetree.detection._detect import _evidence_costs
+
+    frac = np.tile(np.linspace(0.0, 0.9, 10), (10, 1))
+    p = DetectParams(weak_cost=0.5, strong_edge=0.4, size_cost=0.5)
+    out = _evidence_costs(p, frac, np.array([0.1, 0.6]), [400.0, 400.0])
+    assert out.shape == (4, 10, 10)
+    assert np.array_equal(out[0], out[1])  # both directions of a contour
+    # weak contour pays weak_cost * f * (1 - 0.1 / 0.4); the strong one pays nothing
+    big = out[2, :, -1]  # f = 0.9: implied perimeter 444 px, no size term
+    assert np.allclose(big, 0.0)
+    assert np.allclose(out[0, :, -1], 0.5 * 0.9 * 0.75)
+    # short contour on a big model share: implied perimeter below min_perimeter / 2 -> unusable
+    tiny = _evidence_costs(p, frac, np.array([1.0]), [20.0])
+    assert np.isinf(tiny[0, 0, -1])  # f = 0.9: 22 px < 120 / 2
+    # f = 0.2: 100 px, below min_perimeter: the full size term size_cost * f
+    assert tiny[0, 0, 2] == pytest.approx(0.5 * 0.2)
+    # f = 0.1: 200 px, between min (120) and full (240) perimeter: a partial term
+    r = np.log(240 / 200) / np.log(240 / 120)
+    assert tiny[0, 0, 1] == pytest.approx(0.5 * 0.1 * r)
+    off = _evidence_costs(DetectParams(size_cost=0.0, min_perimeter=0.0), frac, [1.0], [20.0])
+    assert np.all(off == 0.0)

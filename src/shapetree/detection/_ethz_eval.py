@@ -157,7 +157,7 @@ def dr_at_fppi(fppi: np.ndarray, dr: np.ndarray, at: float) -> float:
 
 
 def _params_key(params: DetectParams, k: int) -> str:
-    blob = json.dumps({"params": params.as_dict(), "k": k, "v": 2}, sort_keys=True)
+    blob = json.dumps({"params": params.as_dict(), "k": k, "v": 3}, sort_keys=True)
     return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
 
