@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -96,8 +97,27 @@ class MatchResult:
         return np.hstack([self.a[ok], point_at(self.b, self.a_to_b[ok], closed=self.closed)])
 
 
+_workspace = threading.local()
+
+
+def _buffers(n_tables: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """This thread's reusable table buffers (fresh memory costs page faults on every call)."""
+    bufs = getattr(_workspace, "bufs", None)
+    if bufs is None or bufs[0].shape[0] < n_tables or bufs[0].shape[1] != m:
+        bufs = (np.empty((n_tables, m, m)), np.empty((n_tables, m, 2 * m)))
+        _workspace.bufs = bufs
+    return bufs[0][:n_tables], bufs[1][:n_tables]
+
+
 def _bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Allowed target lengths ``[lmin, lmax]`` of every table (nodes first, then segments)."""
+    key = (m, band)
+    if key not in td.band_cache:
+        td.band_cache[key] = _compute_bands(td, m, band)
+    return td.band_cache[key]
+
+
+def _compute_bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray, np.ndarray]:
     tree = td.tree
     k_nodes = tree.end - tree.start
     k = np.concatenate([k_nodes, np.ones(td.seg_lam.shape[0], dtype=np.int64)])
@@ -110,11 +130,18 @@ def _bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray, np.nda
     return lmin, lmax
 
 
-def _fill(td: TreeData, target: Target, params: MatchParams) -> tuple[np.ndarray, np.ndarray]:
+def _fill(
+    td: TreeData, target: Target, params: MatchParams, *, reuse: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Fill the tables of one tree; ``reuse`` writes into this thread's workspace (the
+    result is then only valid until the next reusing call)."""
     m = target.n_points
     lmin, lmax = _bands(td, m, params.band)
-    s_tab = np.empty((td.n_tables, m, m))
-    er_tab = np.empty((td.n_tables, m, 2 * m))
+    if reuse:
+        s_tab, er_tab = _buffers(td.n_tables, m)
+    else:
+        s_tab = np.empty((td.n_tables, m, m))
+        er_tab = np.empty((td.n_tables, m, 2 * m))
     fill_tables(
         td.left_tab,
         td.right_tab,
@@ -352,7 +379,7 @@ def match_cost(model: Model, target: Target, params: MatchParams | None = None) 
     _check_pair(model, target)
     best = np.inf
     for td in model.trees:
-        s_tab, er_tab = _fill(td, target, params)
+        s_tab, er_tab = _fill(td, target, params, reuse=True)
         best = min(best, _root_cost(td, s_tab, er_tab, model.closed)[0])
     return float(best)
 
@@ -456,7 +483,7 @@ def subcurve_table(
     if tree.closed:
         raise ShapeTreeError("subcurve_table needs an open contour")
     td = tree_data(tree, weight=weight, length_scale=length_scale, power=target.length_power)
-    s_tab, _ = _fill(td, target, MatchParams(occlusion=occlusion))
+    s_tab, _ = _fill(td, target, MatchParams(occlusion=occlusion), reuse=True)
     out = s_tab[tree.roots[0]].T.copy()
     out[:, 0] = np.inf
     return out

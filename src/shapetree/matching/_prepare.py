@@ -6,7 +6,7 @@ Both are computed once per curve and reused for every matching the curve takes p
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -113,6 +113,7 @@ class TreeData:
     seg_start: np.ndarray
     seg_lam: np.ndarray
     seg_alen: np.ndarray
+    band_cache: dict = field(default_factory=dict, repr=False)
 
     @property
     def n_tables(self) -> int:
