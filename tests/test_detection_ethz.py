@@ -39,7 +39,7 @@ def test_swan_best_detection_overlaps_ground_truth(stem: str) -> None:
     dets = detect(model, None, edges=ROOT / "Swans" / f"{stem}_edges.tif", k=3)
     gt = np.loadtxt(ROOT / "Swans" / f"{stem}_swans.groundtruth", ndmin=2)
     assert dets
-    # measured in the full ETHZ run: IoU 0.85, 0.83, 0.94; the 20% rule is asserted
+    # measured in the full ETHZ run: IoU 0.72, 0.88, 0.94; the 20% rule is asserted
     assert max(_iou(dets[0].bbox, g) for g in gt) >= 0.2
 
 
