@@ -140,11 +140,12 @@ _MATCH_KEYS = ("n_points", "weight", "occlusion", "n_trees", "mirror", "band", "
 
 #: Tuned matching settings per dataset (see ``benchmarks/results/*.json`` for the runs).
 DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
+    # best measured settings per set (benchmarks/results/<set>.json records each run)
     "kimia99": {
         "n_points": 50,
         "weight": 1.0,
         "occlusion": None,
-        "n_trees": 1,
+        "n_trees": 2,
         "mirror": True,
         "band": None,
         "symmetrize": "none",
@@ -152,8 +153,8 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
     "mpeg7": {
         "n_points": 40,
         "weight": 1.0,
-        "occlusion": None,
-        "n_trees": 1,
+        "occlusion": 1.0,
+        "n_trees": 2,
         "mirror": True,
         "band": 2.0,
         "symmetrize": "none",
