@@ -352,6 +352,20 @@ def test_evaluate_passes_options_to_retrieval(capsys, monkeypatch, tmp_path):
     assert "weight" not in seen  # untouched options keep the library's (per-dataset) default
 
 
+def test_evaluate_caches_by_default_so_runs_resume(capsys, monkeypatch, tmp_path):
+    import shapetree.retrieval as retrieval
+
+    seen: list = []
+    monkeypatch.setattr(retrieval, "evaluate", lambda name, **kw: seen.append(kw) or {})
+    monkeypatch.setenv("SHAPETREE_CACHE", str(tmp_path / "c"))
+    assert run(capsys, "evaluate", "kimia99", "--no-progress")[0] == 0
+    assert seen[-1]["cache_dir"] == str(tmp_path / "c" / "distances" / "kimia99")
+    assert run(capsys, "evaluate", "kimia99", "--no-progress", "--no-cache")[0] == 0
+    assert seen[-1]["cache_dir"] is None
+    assert run(capsys, "evaluate", "kimia99", "--cache-dir", str(tmp_path / "x"))[0] == 0
+    assert seen[-1]["cache_dir"] == str(tmp_path / "x")
+
+
 def test_evaluate_ethz_and_detect_are_wired(capsys, monkeypatch, tmp_path):
     import shapetree.detection as detection
 

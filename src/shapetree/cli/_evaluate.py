@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import ast
 import importlib
+import os
 import shlex
+from pathlib import Path
 from typing import Any
 
 from shapetree._errors import ShapeTreeError
@@ -164,7 +166,13 @@ def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
         dest="cache_dir",
         metavar="DIR",
         default=argparse.SUPPRESS,
-        help="resumable cache (retrieval: default none; ethz: <out>/cache/ethz_detect)",
+        help="resumable cache (retrieval: default $SHAPETREE_CACHE/distances/<set>, else "
+        "~/.cache/shapetree/distances/<set>; ethz: <out>/cache/ethz_detect)",
+    )
+    g.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="retrieval: do not cache finished blocks (no resume after a kill)",
     )
     g = p.add_argument_group("ETHZ options (evaluate ethz)")
     g.add_argument(
@@ -257,6 +265,13 @@ def _detect_params(pairs: list[tuple[str, Any]]) -> Any:
         raise ShapeTreeError(f"bad detection parameter: {exc}") from None
 
 
+def _default_distance_cache(dataset: str) -> Path:
+    """Where ``shapetree evaluate`` keeps its resumable distance blocks by default."""
+    env = os.environ.get("SHAPETREE_CACHE", "").strip()
+    base = Path(env).expanduser() if env else Path.home() / ".cache" / "shapetree"
+    return base / "distances" / dataset
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     """``shapetree evaluate``."""
     progress = not args.no_progress
@@ -282,6 +297,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         for key in args.eval_dynamic:
             if hasattr(args, key):
                 params[key] = getattr(args, key)
+        if getattr(args, "no_cache", False):
+            params["cache_dir"] = None
+        elif params.get("cache_dir") is None:
+            params["cache_dir"] = str(_default_distance_cache(args.dataset))
         command = " ".join(["shapetree", *(shlex.quote(a) for a in args.argv)])
         try:
             evaluate(
