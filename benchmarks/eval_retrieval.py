@@ -99,6 +99,7 @@ def main(argv: list[str] | None = None) -> int:
             n_trees=p["n_trees"],
             mirror=True,
             band=p["band"],
+            length_power=p["length_power"],
             cache_dir=p["cache_dir"],
             block=p["block"],
             progress=False,

@@ -177,3 +177,21 @@ def test_sigkill_midway_then_resume(tmp_path: Path) -> None:
     fresh = distance_matrix(_shapes(24, seed=5), workers=1, **kw)
     assert np.array_equal(resumed, fresh)
     assert len(list(cache.glob("*/*.blk"))) == 24
+
+
+def test_length_power_reaches_the_matcher():
+    from shapetree.matching import match_cost, prepare_model, prepare_target
+
+    curves = _shapes(5, seed=3)
+    D = distance_matrix(
+        curves, n_points=20, length_power=1.5, symmetrize=None, workers=1, progress=False
+    )
+    from shapetree.curves import resample
+
+    pts = [resample(c, 20, closed=True) for c in curves]
+    ref = match_cost(
+        prepare_model(pts[1], length_power=1.5), prepare_target(pts[3], length_power=1.5)
+    )
+    assert D[1, 3] == pytest.approx(ref, rel=1e-12)
+    plain = distance_matrix(curves, n_points=20, symmetrize=None, workers=1, progress=False)
+    assert not np.allclose(D, plain)

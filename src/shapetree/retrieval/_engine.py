@@ -87,6 +87,9 @@ class DistanceParams:
     band : float or None
         Pruned matching (:class:`shapetree.matching.MatchParams`): a model subcurve may
         only stretch by at most this factor; ``None`` is exact matching.
+    length_power : float
+        λ grows as the relative subcurve length to this power
+        (:func:`shapetree.matching.prepare_model`; the paper: 1).
     """
 
     n_points: int | None = 50
@@ -96,6 +99,7 @@ class DistanceParams:
     split: str = "half"
     mirror: bool = False
     band: float | None = None
+    length_power: float = 1.0
 
     def __post_init__(self) -> None:
         if self.n_points is not None and int(self.n_points) < 4:
@@ -105,6 +109,8 @@ class DistanceParams:
         MatchParams(occlusion=self.occlusion, band=self.band)  # validates κ and band
         if not (np.isfinite(self.weight) and self.weight > 0):
             raise ShapeTreeError(f"weight must be a positive number, got {self.weight}")
+        if not (np.isfinite(self.length_power) and self.length_power >= 0):
+            raise ShapeTreeError(f"length_power must be >= 0, got {self.length_power}")
 
     @property
     def n_pass(self) -> int:
@@ -128,6 +134,8 @@ def _cache_key(models: list[np.ndarray], targets: list[np.ndarray], p: DistanceP
     spec = asdict(p)
     if spec["band"] is None:  # keys of exact runs predate the band option
         del spec["band"]
+    if spec["length_power"] == 1.0:  # and keys of the paper's λ predate length_power
+        del spec["length_power"]
     h.update(json.dumps(spec, sort_keys=True).encode())
     for group in (models, targets):
         h.update(struct.pack("<Q", len(group)))
@@ -217,13 +225,19 @@ def _compute_block(
 ) -> np.ndarray:
     """Directed costs of ``models`` (rows) against every target: shape (n_pass, r, m)."""
     mp = MatchParams(occlusion=p.occlusion, band=p.band)
-    kw = dict(closed=True, n_trees=p.n_trees, split=p.split, weight=p.weight)
+    kw = dict(
+        closed=True,
+        n_trees=p.n_trees,
+        split=p.split,
+        weight=p.weight,
+        length_power=p.length_power,
+    )
     passes = [[prepare_model(a, **kw) for a in models]]
     if p.mirror:
         passes.append([prepare_model(mirror_curve(a), **kw) for a in models])
     out = np.empty((len(passes), len(models), len(targets)))
     for j, b in enumerate(targets):
-        t = prepare_target(b, closed=True)
+        t = prepare_target(b, closed=True, length_power=p.length_power)
         for k, ms in enumerate(passes):
             for i, m in enumerate(ms):
                 out[k, i, j] = match_cost(m, t, mp)
@@ -243,6 +257,7 @@ def directed_costs(
     split: str = "half",
     mirror: bool = False,
     band: float | None = None,
+    length_power: float = 1.0,
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
     block: int = 8,
@@ -258,7 +273,7 @@ def directed_costs(
         Closed curves whose shape-trees are deformed (rows).
     targets : sequence of array_like, optional
         Closed curves deformed onto (columns); default ``models``.
-    n_points, weight, occlusion, n_trees, split, mirror, band
+    n_points, weight, occlusion, n_trees, split, mirror, band, length_power
         See :class:`DistanceParams`.
     workers : int
         Threads (the matching kernel releases the GIL).
@@ -280,7 +295,9 @@ def directed_costs(
     ndarray, shape (n_pass, n_models, n_targets)
         ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``).
     """
-    p = DistanceParams(n_points, weight, occlusion, int(n_trees), split, bool(mirror), band)
+    p = DistanceParams(
+        n_points, weight, occlusion, int(n_trees), split, bool(mirror), band, float(length_power)
+    )
     ms = _prep_curves(models, p.n_points, "model curve")
     ts = ms if targets is None else _prep_curves(targets, p.n_points, "target curve")
     n, m = len(ms), len(ts)
@@ -411,6 +428,7 @@ def distance_matrix(
     split: str = "half",
     mirror: bool = False,
     band: float | None = None,
+    length_power: float = 1.0,
     symmetrize: str | None = "min",
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
@@ -477,6 +495,7 @@ def distance_matrix(
         split=split,
         mirror=mirror,
         band=band,
+        length_power=length_power,
         workers=workers,
         cache_dir=cache_dir,
         progress=progress,

@@ -109,6 +109,11 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
         "default": None,
         "help": "pruned matching: max stretch of a subcurve (0: exact matching)",
     },
+    "length_power": {
+        "type": float,
+        "default": 1.0,
+        "help": "lambda grows as (relative subcurve length)^p; the paper uses 1",
+    },
     "symmetrize": {
         "type": str,
         "default": None,
@@ -136,7 +141,16 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
     "n_show": {"type": int, "default": 10, "help": "matches per query in the retrieval grid"},
 }
 
-_MATCH_KEYS = ("n_points", "weight", "occlusion", "n_trees", "mirror", "band", "symmetrize")
+_MATCH_KEYS = (
+    "n_points",
+    "weight",
+    "occlusion",
+    "n_trees",
+    "mirror",
+    "band",
+    "length_power",
+    "symmetrize",
+)
 
 #: Tuned matching settings per dataset (see ``benchmarks/results/*.json`` for the runs).
 DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
@@ -310,6 +324,7 @@ def evaluate(
         n_trees=p["n_trees"],
         mirror=bool(p["mirror"]),
         band=p["band"],
+        length_power=p["length_power"],
         workers=p["workers"],
         cache_dir=p["cache_dir"],
         block=p["block"],
