@@ -16,16 +16,14 @@ from shapetree.datasets import available
 from shapetree.retrieval import EVAL_PARAMS, evaluate, format_table
 
 #: measured: ``evaluate("kimia99", n_points=40, band=2.0)`` (mirror, symmetrize="none").
-KIMIA_FAST = dict(
-    n_points=40, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=0.0
-)
+KIMIA_FAST = dict(n_points=40, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=0.0)
 KIMIA_FAST_RANKS = [99, 99, 99, 98, 98, 97, 96, 93, 88, 68]  # sum 935
+#: the same matrix re-ranked by TPG diffusion (``rerank="tpg"``, not a pairwise measure).
+KIMIA_FAST_TPG_RANKS = [99] * 10
 
 #: ten MPEG-7 classes (20 shapes each), including hard ones.
 MPEG7_CLASSES = "apple,bat,beetle,bird,Bone,camel,deer,device4,horse,pocket"
-MPEG7_FAST = dict(
-    n_points=32, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=0.0
-)
+MPEG7_FAST = dict(n_points=32, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=0.0)
 MPEG7_FAST_BULLSEYE = 90.5  # measured 90.95; threshold slightly below
 
 
@@ -50,10 +48,20 @@ def test_eval_params_are_cli_ready() -> None:
 def test_kimia99_end_to_end(out: Path) -> None:
     if not _have("kimia99"):
         pytest.skip("kimia99 not present")
-    rec = evaluate("kimia99", json_path=out / "k.json", out_dir=out, progress=False, **KIMIA_FAST)
-    assert rec["ranks"] == KIMIA_FAST_RANKS
+    rec = evaluate(
+        "kimia99",
+        json_path=out / "k.json",
+        out_dir=out,
+        progress=False,
+        rerank="tpg",
+        **KIMIA_FAST,
+    )
+    assert rec["pairwise"]["ranks"] == KIMIA_FAST_RANKS
+    assert rec["reranked"]["ranks"] == KIMIA_FAST_TPG_RANKS
+    assert rec["ranks"] == KIMIA_FAST_TPG_RANKS and rec["measure"].startswith("re-ranked")
     saved = json.loads((out / "k.json").read_text())
-    assert saved["ranks"] == KIMIA_FAST_RANKS and len(saved["ranks"]) == 10
+    assert saved["ranks"] == KIMIA_FAST_TPG_RANKS and len(saved["ranks"]) == 10
+    assert saved["pairwise"]["ranks"] == KIMIA_FAST_RANKS
     assert saved["seconds"] > 0 and saved["params"]["n_points"] == 40
     assert saved["params"]["band"] == 2.0 and saved["params"]["mirror"] is True
     assert (out / "kimia99_retrieval.png").stat().st_size > 10_000
@@ -73,6 +81,7 @@ def test_mpeg7_reduced_bullseye(out: Path) -> None:
     )
     assert rec["n_shapes"] == 200 and rec["n_classes"] == 10
     assert rec["bullseye"] >= MPEG7_FAST_BULLSEYE
+    assert rec["measure"].startswith("pairwise") and "reranked" not in rec
     per = rec["bullseye_per_class"]
     assert len(per) == 10 and np.isclose(np.mean(list(per.values())), rec["bullseye"])
     assert (out / "mpeg7_bullseye_per_class.png").is_file()

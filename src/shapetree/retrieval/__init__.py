@@ -1,4 +1,5 @@
-"""All-pairs shape-tree distances (cached, resumable) and the retrieval protocols of §5.1."""
+"""All-pairs shape-tree distances (cached, resumable), the retrieval protocols of §5.1, and
+optional re-ranking of a whole distance matrix (reported apart from the pairwise scores)."""
 
 from shapetree.retrieval._engine import (
     SYMMETRIZE,
@@ -25,11 +26,13 @@ from shapetree.retrieval._protocols import (
     nn_accuracy_splits,
     ranked_neighbours,
 )
+from shapetree.retrieval._rerank import RERANK_DEFAULTS, knn_affinity, tpg_rerank
 
 __all__ = [
     "DATASET_DEFAULTS",
     "EVAL_PARAMS",
     "PAPER_TABLES",
+    "RERANK_DEFAULTS",
     "SYMMETRIZE",
     "DistanceParams",
     "bullseye",
@@ -42,9 +45,11 @@ __all__ = [
     "format_table",
     "machine_info",
     "kimia_ranks",
+    "knn_affinity",
     "mirror_curve",
     "nn_accuracy_splits",
     "plot_bullseye_per_class",
     "plot_retrieval_grid",
     "ranked_neighbours",
+    "tpg_rerank",
 ]
