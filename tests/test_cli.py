@@ -33,6 +33,8 @@ COMMAND_OPTIONS = {
     "datasets": ["fetch", "list"],
     "evaluate": ["--json", "--out", "--param", "kimia99", "mpeg7", "swedish_leaf", "ethz"],
     "detect": ["--edges", "--output", "--json", "-k"],
+    "search": ["-k", "--plot", "--json", "--points", "--trees", "--mirror", "--skip-bad"],
+    "distances": ["--output", "--csv", "--symmetrize", "--cache", "--no-cache", "--band"],
 }
 
 

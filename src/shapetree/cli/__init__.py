@@ -1,6 +1,7 @@
 """The ``shapetree`` command line.
 
-Commands: ``match``, ``tree``, ``deform``, ``demo``, ``datasets``, ``evaluate``, ``detect``
+Commands: ``match``, ``tree``, ``deform``, ``search``, ``distances``, ``demo``, ``datasets``,
+``evaluate``, ``detect``
 (``shapetree COMMAND --help`` for each). Errors in the input (:class:`ShapeTreeError`,
 :class:`OSError`) are reported as one line ``shapetree: error: <message>`` on stderr with
 exit status 2, never a traceback.
@@ -24,6 +25,8 @@ examples:
   shapetree match a.png b.png --occlusion 0.5     # allow replaced (occluded) parts
   shapetree tree demo:hand -o tree.png            # the shape-tree, level by level (Fig. 3)
   shapetree deform demo:hand -o deform.png        # random deformations (Fig. 4)
+  shapetree search query.png shapes/ -k 5         # nearest shapes in a folder
+  shapetree distances shapes/ -o D.npz            # all-pairs matrix, resumable
   shapetree datasets fetch mpeg7                  # download a benchmark
   shapetree evaluate mpeg7 --json mpeg7.json      # bull's-eye score
   shapetree detect model.png image.jpg -o det.png # find a shape in clutter (section 4)
@@ -52,7 +55,7 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     -------
     argparse.ArgumentParser
     """
-    from shapetree.cli import _datasets, _demo, _evaluate, _shapes
+    from shapetree.cli import _datasets, _demo, _evaluate, _search, _shapes
     from shapetree.cli._common import Formatter
 
     parser = argparse.ArgumentParser(
@@ -66,6 +69,7 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     _shapes.add_parsers(sub)
     _demo.add_parsers(sub)
+    _search.add_parsers(sub)
     _datasets.add_parsers(sub)
     _evaluate.add_parsers(sub, full=argv is not None and _wants_evaluate(argv))
     return parser

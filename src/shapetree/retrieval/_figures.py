@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from shapetree.plotting import save_figure
 from shapetree.retrieval._protocols import ranked_neighbours
 
-__all__ = ["plot_bullseye_per_class", "plot_retrieval_grid"]
+__all__ = ["plot_bullseye_per_class", "plot_retrieval_grid", "plot_search"]
 
 
 def _draw(ax, curve: np.ndarray, colour: str) -> None:
@@ -91,7 +92,7 @@ def plot_retrieval_grid(
     fig.tight_layout()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=90)
+    save_figure(fig, out, dpi=90)
     plt.close(fig)
     return out
 
@@ -139,6 +140,62 @@ def plot_bullseye_per_class(
     fig.tight_layout()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100)
+    save_figure(fig, out, dpi=100)
+    plt.close(fig)
+    return out
+
+
+def plot_search(
+    query: ArrayLike,
+    matches: Sequence[ArrayLike],
+    captions: Sequence[str],
+    path: str | os.PathLike[str],
+    *,
+    title: str = "",
+    per_row: int = 6,
+) -> Path:
+    """A query outline and its nearest shapes, in rank order, with captions.
+
+    Parameters
+    ----------
+    query : array_like, shape (n, 2)
+        Closed curve in image coordinates (y down).
+    matches : sequence of array_like, each shape (k, 2)
+        The nearest shapes, best first.
+    captions : sequence of str
+        One per match (e.g. name and distance).
+    path : path-like
+        Output picture (written atomically).
+    title : str
+    per_row : int
+        Panels per row (the query takes the first panel).
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    n = len(matches) + 1
+    cols = min(per_row, n)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(1.7 * cols, 1.9 * rows), squeeze=False)
+    for ax in axes.ravel():
+        ax.axis("off")
+    _draw(axes[0, 0], np.asarray(query), "black")
+    axes[0, 0].axis("on")
+    axes[0, 0].set_title("query", fontsize=8)
+    for i, (curve, cap) in enumerate(zip(matches, captions), start=1):
+        ax = axes[i // cols, i % cols]
+        _draw(ax, np.asarray(curve), "tab:blue")
+        ax.axis("on")
+        ax.set_title(f"{i}. {cap}", fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    out = save_figure(fig, path, dpi=100)
     plt.close(fig)
     return out

@@ -1,0 +1,360 @@
+"""``shapetree search`` and ``shapetree distances``: retrieval on the user's own shapes."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from shapetree._atomic import atomic_open
+from shapetree._errors import ShapeTreeError
+from shapetree.cli._common import (
+    DEMO_PREFIX,
+    Formatter,
+    info,
+    load_shape,
+    nonneg_float,
+    points_int,
+    positive_int,
+    warn,
+    write_json,
+)
+
+SEARCH_EPILOG = """\
+examples:
+  shapetree search query.png shapes/                 # 10 nearest shapes of a folder
+  shapetree search query.png shapes/ -k 5 --plot top5.png --json top5.json
+  shapetree search demo:G demo:S demo:hand demo:G    # any mix of files and demo shapes
+
+The distance of a database shape x is psi(query deformed onto x) (paper section 3),
+the lesser of the query and its mirror image unless --no-mirror. Folders are read for
+images (png, gif, bmp, tif, jpg, pgm...) and point files (csv, txt, npy, json).
+"""
+
+DISTANCES_EPILOG = """\
+examples:
+  shapetree distances shapes/ -o D.npz               # all pairs, resumable
+  shapetree distances shapes/ -o D.npz --csv D.csv --symmetrize mean
+
+The .npz holds D (n x n, row = query), names (n file names) and params (JSON text):
+  z = numpy.load("D.npz"); D, names = z["D"], z["names"]
+Finished row blocks are cached (default $SHAPETREE_CACHE/distances/custom), so a run that
+is interrupted resumes where it stopped when started again with the same shapes and options.
+"""
+
+#: Extensions read from a folder: images and point files.
+_POINT_EXTENSIONS = (".csv", ".txt", ".npy", ".json")
+
+
+def _natural_key(path: Path) -> list[Any]:
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", path.name)]
+
+
+def expand_specs(specs: list[str]) -> list[str]:
+    """Files, ``demo:NAME`` shapes, and folders (their image and point files, sorted).
+
+    Parameters
+    ----------
+    specs : list of str
+
+    Returns
+    -------
+    list of str
+        One entry per shape.
+
+    Raises
+    ------
+    ShapeTreeError
+        A path that does not exist, or a folder without any shape file.
+    """
+    from shapetree.curves._image import IMAGE_EXTENSIONS
+
+    exts = set(IMAGE_EXTENSIONS) | set(_POINT_EXTENSIONS)
+    out: list[str] = []
+    for spec in specs:
+        if spec.startswith(DEMO_PREFIX):
+            out.append(spec)
+            continue
+        p = Path(spec)
+        if p.is_dir():
+            files = sorted(
+                (f for f in p.iterdir() if f.is_file() and f.suffix.lower() in exts),
+                key=_natural_key,
+            )
+            if not files:
+                raise ShapeTreeError(
+                    f"{p}: folder has no shape files (images or {', '.join(_POINT_EXTENSIONS)})"
+                )
+            out += [str(f) for f in files]
+        elif p.exists():
+            out.append(spec)
+        else:
+            raise ShapeTreeError(f"{spec}: no such file or folder")
+    return out
+
+
+def load_shapes(
+    specs: list[str], *, n_points: int, skip_bad: bool, progress: bool
+) -> tuple[list[np.ndarray], list[str]]:
+    """Read every shape as a closed curve; report every bad file, not just the first.
+
+    Returns
+    -------
+    curves : list of ndarray, each shape (n_points, 2)
+    names : list of str
+        The spec of each curve that was read.
+    """
+    from tqdm.auto import tqdm
+
+    curves: list[np.ndarray] = []
+    names: list[str] = []
+    bad: list[str] = []
+    for spec in tqdm(specs, desc="reading shapes", unit="shape", disable=not progress):
+        try:
+            shape = load_shape(spec, n_points=n_points, closed=True)
+        except (ShapeTreeError, OSError) as exc:
+            bad.append(" ".join(str(exc).split()))
+            continue
+        if not shape.closed:
+            bad.append(f"{spec}: is an open curve; search compares closed outlines")
+            continue
+        curves.append(shape.points)
+        names.append(spec)
+    if bad:
+        listing = "; ".join(bad[:5]) + (f"; and {len(bad) - 5} more" if len(bad) > 5 else "")
+        if not skip_bad:
+            raise ShapeTreeError(
+                f"{len(bad)} of {len(specs)} shapes could not be read ({listing}); "
+                "fix or remove them, or pass --skip-bad"
+            )
+        warn(f"skipped {len(bad)} unreadable shape(s): {listing}")
+    return curves, names
+
+
+def _default_cache() -> Path:
+    env = os.environ.get("SHAPETREE_CACHE", "").strip()
+    base = Path(env).expanduser() if env else Path.home() / ".cache" / "shapetree"
+    return base / "distances" / "custom"
+
+
+def _add_matching(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("matching")
+    g.add_argument(
+        "--points",
+        type=points_int,
+        default=50,
+        metavar="N",
+        help="resample every outline to N points (time grows as N^4)",
+    )
+    g.add_argument(
+        "--trees",
+        type=positive_int,
+        default=2,
+        metavar="T",
+        help="shape-trees per query (different start points), best kept",
+    )
+    g.add_argument(
+        "--occlusion",
+        type=nonneg_float,
+        default=0.0,
+        metavar="K",
+        help="replacement cost factor for missing/extra parts (0: off)",
+    )
+    g.add_argument(
+        "--band",
+        type=nonneg_float,
+        default=0.0,
+        metavar="B",
+        help="pruned matching, max stretch of a subcurve, e.g. 2 (0: exact); 3-5x faster",
+    )
+    g.add_argument(
+        "--mirror",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also match the mirrored query and keep the better cost",
+    )
+    g.add_argument("--workers", type=positive_int, default=2, metavar="W", help="threads")
+    p.add_argument(
+        "--skip-bad",
+        action="store_true",
+        help="skip unreadable shapes with a warning (default: stop and list them)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Register ``search`` and ``distances``."""
+    p = sub.add_parser(
+        "search",
+        help="rank a collection of shapes by similarity to a query shape",
+        description="Rank database shapes (files, folders, demo:NAME) by the shape-tree "
+        "deformation cost of the query onto each, and print the nearest ones.",
+        epilog=SEARCH_EPILOG,
+        formatter_class=Formatter,
+    )
+    p.add_argument("query", metavar="QUERY", help="query shape: image, point file or demo:NAME")
+    p.add_argument("database", metavar="SHAPE", nargs="+", help="shape files or folders")
+    p.add_argument("-k", type=positive_int, default=10, metavar="K", help="results shown")
+    p.add_argument("--plot", metavar="PNG", help="draw the query and its K nearest shapes")
+    p.add_argument("--json", metavar="PATH", help="write the full ranking as JSON")
+    _add_matching(p)
+    p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser(
+        "distances",
+        help="all-pairs shape-tree distances of a collection (resumable), to .npz/.csv",
+        description="Compute the matrix of shape-tree distances between all shapes given "
+        "(files, folders, demo:NAME) on all cores, with a progress bar and a resumable cache.",
+        epilog=DISTANCES_EPILOG,
+        formatter_class=Formatter,
+    )
+    p.add_argument("shapes", metavar="SHAPE", nargs="+", help="shape files or folders")
+    p.add_argument("-o", "--output", metavar="NPZ", required=True, help="output .npz file")
+    p.add_argument("--csv", metavar="PATH", help="also write the matrix as CSV with names")
+    p.add_argument(
+        "--symmetrize",
+        choices=("min", "mean", "max", "none"),
+        default="none",
+        help="combine psi(i,j) and psi(j,i); none keeps psi(row deformed onto column)",
+    )
+    p.add_argument(
+        "--cache",
+        metavar="DIR",
+        default=None,
+        help="resumable block cache (default: $SHAPETREE_CACHE/distances/custom)",
+    )
+    p.add_argument("--no-cache", action="store_true", help="do not cache finished blocks")
+    _add_matching(p)
+    p.set_defaults(func=cmd_distances)
+
+
+def _matching_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {
+        "n_points": None,  # curves are already resampled by load_shapes
+        "n_trees": args.trees,
+        "occlusion": args.occlusion or None,
+        "band": args.band or None,
+        "mirror": args.mirror,
+        "workers": args.workers,
+    }
+
+
+def _params(args: argparse.Namespace) -> dict[str, Any]:
+    return {
+        "n_points": args.points,
+        "n_trees": args.trees,
+        "occlusion": args.occlusion,
+        "band": args.band,
+        "mirror": args.mirror,
+    }
+
+
+def cmd_search(args: argparse.Namespace) -> int:
+    """``shapetree search``."""
+    from shapetree.plotting import check_figure_path
+    from shapetree.retrieval import distance_matrix
+
+    if args.plot:
+        check_figure_path(args.plot)
+    progress = not args.no_progress
+    query = load_shape(args.query, n_points=args.points, closed=True)
+    if not query.closed:
+        raise ShapeTreeError(f"{args.query}: is an open curve; search compares closed outlines")
+    curves, names = load_shapes(
+        expand_specs(args.database),
+        n_points=args.points,
+        skip_bad=args.skip_bad,
+        progress=progress,
+    )
+    d = distance_matrix(
+        [query.points], curves, symmetrize="none", progress=progress, **_matching_kwargs(args)
+    )[0]
+    d = np.maximum(d, 0.0)  # a rounding error below zero is a perfect match
+    order = np.argsort(d, kind="stable")
+    k = min(args.k, len(order))
+    info(f"query {args.query}: {k} nearest of {len(names)} shapes (smaller = more similar)")
+    info(f"{'rank':>4}  {'distance':>9}  shape")
+    for r, j in enumerate(order[:k], start=1):
+        info(f"{r:>4}  {d[j]:9.5f}  {Path(names[j]).name}")
+    if args.json:
+        path = write_json(
+            args.json,
+            {
+                "query": args.query,
+                "params": _params(args),
+                "ranking": [
+                    {"rank": r, "shape": names[j], "distance": float(d[j])}
+                    for r, j in enumerate(order, start=1)
+                ],
+            },
+        )
+        info(f"json: {path}")
+    if args.plot:
+        from shapetree.retrieval._figures import plot_search
+
+        path = plot_search(
+            query.points,
+            [curves[j] for j in order[:k]],
+            [f"{Path(names[j]).name}\n{d[j]:.4f}" for j in order[:k]],
+            args.plot,
+            title=f"{Path(args.query).name}: nearest shapes",
+        )
+        info(f"picture: {path}")
+    return 0
+
+
+def cmd_distances(args: argparse.Namespace) -> int:
+    """``shapetree distances``."""
+    from shapetree.retrieval import distance_matrix
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".npz":
+        raise ShapeTreeError(f"{out}: the output must be a .npz file")
+    if out.is_dir():
+        raise ShapeTreeError(f"{out}: is a directory, expected a .npz file name")
+    progress = not args.no_progress
+    curves, names = load_shapes(
+        expand_specs(args.shapes),
+        n_points=args.points,
+        skip_bad=args.skip_bad,
+        progress=progress,
+    )
+    if len(curves) < 2:
+        raise ShapeTreeError(f"need at least 2 shapes, got {len(curves)}")
+    cache = None if args.no_cache else Path(args.cache) if args.cache else _default_cache()
+    d = distance_matrix(
+        curves,
+        symmetrize=args.symmetrize,
+        progress=progress,
+        cache_dir=cache,
+        **_matching_kwargs(args),
+    )
+    d = np.maximum(d, 0.0)
+    import json
+
+    params = dict(_params(args), symmetrize=args.symmetrize)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_open(out, "wb") as fh:
+        np.savez(fh, D=d, names=np.array(names), params=np.array(json.dumps(params)))
+    info(f"{len(names)} shapes, {len(names) ** 2} ordered pairs -> {out}")
+    if args.csv:
+        csv = Path(args.csv)
+        with atomic_open(csv, "w") as fh:
+            fh.write("," + ",".join(_csv_field(Path(n).name) for n in names) + "\n")
+            for n, row in zip(names, d):
+                fh.write(_csv_field(Path(n).name) + "," + ",".join(f"{v:.8g}" for v in row) + "\n")
+        info(f"csv: {csv}")
+    return 0
+
+
+def _csv_field(text: str) -> str:
+    if any(c in text for c in ',"\n'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+__all__ = ["add_parsers", "cmd_distances", "cmd_search", "expand_specs", "load_shapes"]

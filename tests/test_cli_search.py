@@ -1,0 +1,130 @@
+"""``shapetree search`` and ``shapetree distances`` on folders the tests make themselves."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shapetree.cli import main
+from shapetree.demo import demo_shape, similarity
+from shapetree.tree import build_shape_tree, deform
+
+NAMES = ["star", "square", "triangle", "hand", "leaf", "glyph-G"]
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory) -> Path:
+    """Six demo outlines and a deformed, rotated, rescaled copy of each, as point files."""
+    d = tmp_path_factory.mktemp("db")
+    for i, name in enumerate(NAMES):
+        pts = demo_shape(name, n_points=60)
+        np.savetxt(d / f"{name}.csv", pts, delimiter=",")
+        copy = deform(build_shape_tree(pts, closed=True), 0.03, rng=i)
+        copy = similarity(copy, angle=0.7 + i, scale=2.5, shift=(10.0, -4.0), roll=7)
+        np.save(d / f"{name}-copy.npy", copy)
+    (d / "notes.md").write_text("not a shape, ignored by folder expansion\n")
+    return d
+
+
+@pytest.mark.parametrize("name", ["star", "hand", "glyph-G"])
+def test_search_ranks_the_deformed_copy_first(capsys, folder: Path, tmp_path: Path, name: str):
+    out_json = tmp_path / "r.json"
+    out_png = tmp_path / "r.png"
+    code, out, err = run(
+        capsys,
+        "search",
+        folder / f"{name}.csv",
+        folder,
+        "-k",
+        "3",
+        "--points",
+        "32",
+        "--trees",
+        "1",
+        "--json",
+        out_json,
+        "--plot",
+        out_png,
+        "--no-progress",
+    )
+    assert code == 0, err
+    rows = [ln.split() for ln in out.splitlines() if ln.strip()[:1].isdigit()]
+    assert [r[2] for r in rows[:2]] == [f"{name}.csv", f"{name}-copy.npy"]
+    assert float(rows[0][1]) == 0.0 and float(rows[1][1]) > 0.0
+    rec = json.loads(out_json.read_text())
+    assert len(rec["ranking"]) == 2 * len(NAMES)  # the full ranking, notes.md skipped
+    dist = [r["distance"] for r in rec["ranking"]]
+    assert dist == sorted(dist)
+    assert rec["params"]["n_points"] == 32
+    assert out_png.stat().st_size > 5_000
+
+
+def test_distances_matrix_resumes_and_writes_csv(capsys, folder: Path, tmp_path: Path):
+    args = ["distances", folder, "--points", "24", "--trees", "1", "--no-progress"]
+    args += ["--cache", tmp_path / "cache"]
+    code, out, err = run(capsys, *args, "-o", tmp_path / "D.npz", "--csv", tmp_path / "D.csv")
+    assert code == 0, err
+    z = np.load(tmp_path / "D.npz")
+    d, names = z["D"], [Path(n).name for n in z["names"]]
+    n = 2 * len(NAMES)
+    assert d.shape == (n, n) and len(names) == n
+    assert np.allclose(np.diag(d), 0.0, atol=1e-12)
+    assert json.loads(str(z["params"]))["n_points"] == 24
+    # every shape's nearest other shape is its deformed copy (or the copy's original)
+    off = d + np.diag(np.full(n, np.inf))
+    for i, nm in enumerate(names):
+        stem = nm.split(".")[0].removesuffix("-copy")
+        assert names[int(np.argmin(off[i]))].split(".")[0].removesuffix("-copy") == stem
+    lines = (tmp_path / "D.csv").read_text().splitlines()
+    assert len(lines) == n + 1 and lines[0].split(",")[1:] == names
+    assert np.allclose(np.array([ln.split(",")[1:] for ln in lines[1:]], float), d, rtol=1e-7)
+    # second run: every block from the cache, same matrix
+    code, _, err = run(capsys, *args, "-o", tmp_path / "D2.npz")
+    assert code == 0, err
+    assert np.array_equal(np.load(tmp_path / "D2.npz")["D"], d)
+
+
+def test_bad_shapes_are_listed_or_skipped(capsys, folder: Path, tmp_path: Path):
+    db = tmp_path / "db"
+    db.mkdir()
+    for f in list(folder.glob("*.csv"))[:3]:
+        (db / f.name).write_bytes(f.read_bytes())
+    (db / "broken.png").write_bytes(b"not an image")
+    (db / "nan.csv").write_text("0,0\n1,nan\n2,0\n")
+    query = folder / "star.csv"
+    code, out, err = run(capsys, "search", query, db, "--points", "20", "--no-progress")
+    assert code == 2 and out == ""
+    assert "2 of 5 shapes could not be read" in err
+    assert "broken.png" in err and "nan.csv" in err and "--skip-bad" in err
+    assert len(err.strip().splitlines()) == 1
+    code, out, err = run(
+        capsys, "search", query, db, "--points", "20", "--no-progress", "--skip-bad"
+    )
+    assert code == 0 and "skipped 2 unreadable" in err
+    assert "3 nearest of 3 shapes" in out or "of 3 shapes" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["search", "demo:star", "{tmp}/missing"], "no such file or folder"),
+        (["search", "demo:star", "{tmp}/empty"], "no shape files"),
+        (["distances", "demo:star", "demo:square", "-o", "{tmp}/D.txt"], "must be a .npz"),
+        (["distances", "demo:star", "-o", "{tmp}/D.npz"], "at least 2 shapes"),
+    ],
+)
+def test_usage_problems_are_one_line(capsys, tmp_path: Path, argv: list[str], words: str):
+    (tmp_path / "empty").mkdir()
+    code, out, err = run(capsys, *[a.format(tmp=tmp_path) for a in argv], "--no-progress")
+    assert code == 2
+    assert words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "D.npz").exists() and not (tmp_path / "D.txt").exists()
