@@ -24,13 +24,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS  # noqa: E402
 
-from shapetree import datasets  # noqa: E402
 from shapetree.retrieval import (  # noqa: E402
     EVAL_PARAMS,
     SYMMETRIZE,
     bullseye,
     combine,
-    directed_costs,
     evaluate,
     kimia_ranks,
     nn_accuracy_splits,
@@ -79,32 +77,18 @@ def main(argv: list[str] | None = None) -> int:
         )
     json_path = Path(args.json or RESULTS / f"{args.dataset}.json")
     command = "python benchmarks/eval_retrieval.py " + " ".join(shlex.quote(a) for a in argv)
+    arrays: dict = {}
     rec = evaluate(
-        args.dataset, json_path=json_path, out_dir=args.out_dir, command=command, **params
+        args.dataset,
+        json_path=json_path,
+        out_dir=args.out_dir,
+        command=command,
+        arrays=arrays,
+        **params,
     )
     p = rec["params"]
-    if not args.no_ablation and p["cache_dir"] and p["mirror"]:
-        ds = datasets.load(
-            args.dataset,
-            n_points=p["n_points"],
-            progress=False,
-            classes=p["classes"],
-            per_class=p["per_class"],
-        )
-        c = directed_costs(
-            ds.curves,
-            n_points=p["n_points"],
-            weight=p["weight"],
-            occlusion=p["occlusion"],
-            n_trees=p["n_trees"],
-            mirror=True,
-            band=p["band"],
-            length_power=p["length_power"],
-            cache_dir=p["cache_dir"],
-            block=p["block"],
-            progress=False,
-        )
-        labels = np.asarray(ds.labels)
+    if not args.no_ablation and p["mirror"]:
+        c, labels = arrays["costs"], arrays["labels"]
         rec["ablation"] = {
             f"mirror={mir} symmetrize={s}": _score(
                 args.dataset, combine(c if mir else c[:1], s), labels, p

@@ -16,6 +16,7 @@ from shapetree.curves import (
     orient,
     resample,
     signed_area,
+    smooth,
 )
 
 SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])  # ccw in a y-up frame
@@ -310,3 +311,41 @@ def test_load_curve_invalid_curve_names_file(tmp_path):
 def test_load_curve_missing_image_is_image_error(tmp_path):
     with pytest.raises(ImageError, match="not found"):
         load_curve(tmp_path / "nothing.png")
+
+
+# ---------------------------------------------------------------- smooth
+
+
+def test_smooth_circle_shrinks_by_the_gaussian_factor():
+    c = circle(2000, r=3.0)
+    for sigma in (0.005, 0.02, 0.05):
+        out = smooth(c, sigma, closed=True)
+        r = np.hypot(*out.T)
+        expected = 3.0 * np.exp(-((2 * np.pi * sigma) ** 2) / 2)
+        assert r.mean() == pytest.approx(expected, rel=1e-4)
+        assert r.std() < 1e-6
+
+
+def test_smooth_removes_fine_ripple_but_keeps_the_shape():
+    # fine square-wave ripple on a circle (like a pixel staircase): ripple goes, circle stays
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    wobbly = np.c_[np.cos(t), np.sin(t)] * (1 + 0.01 * np.sign(np.sin(80 * t)))[:, None]
+    out = smooth(wobbly, 0.01, closed=True)
+    r = np.hypot(*out.T)
+    assert r.std() < 0.1 * np.hypot(*wobbly.T).std()
+    assert abs(r.mean() - 1.0) < 0.01
+
+
+def test_smooth_open_keeps_ends_and_zero_is_identity():
+    x = np.linspace(0, 10, 200)
+    line = np.c_[x, 0.1 * np.sin(7 * x)]
+    out = smooth(line, 0.02, closed=False)
+    assert np.allclose(out[0], line[0]) and np.allclose(out[-1], line[-1])
+    assert np.abs(out[:, 1]).max() < np.abs(line[:, 1]).max()
+    assert np.array_equal(smooth(line, 0.0, closed=False), as_curve(line, closed=False))
+
+
+@pytest.mark.parametrize("sigma", [-0.1, 0.5, float("nan"), "a", True])
+def test_smooth_bad_sigma(sigma):
+    with pytest.raises(CurveError, match="sigma"):
+        smooth(circle(20), sigma, closed=True)

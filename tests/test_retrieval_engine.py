@@ -195,3 +195,19 @@ def test_length_power_reaches_the_matcher():
     assert D[1, 3] == pytest.approx(ref, rel=1e-12)
     plain = distance_matrix(curves, n_points=20, symmetrize=None, workers=1, progress=False)
     assert not np.allclose(D, plain)
+
+
+def test_smooth_reaches_the_matcher_and_the_cache_key(tmp_path: Path):
+    from shapetree.curves import smooth
+
+    curves = _shapes(4, n=200, seed=5)
+    kw = dict(n_points=24, symmetrize=None, workers=1, progress=False, cache_dir=tmp_path)
+    D = distance_matrix(curves, smooth=0.01, **kw)
+    pts = [resample(smooth(c, 0.01, closed=True), 24, closed=True) for c in curves]
+    ref = match_cost(prepare_model(pts[2]), prepare_target(pts[0]))
+    assert D[2, 0] == pytest.approx(ref, rel=1e-12)
+    plain = distance_matrix(curves, **kw)
+    assert not np.allclose(D, plain)
+    assert len([p for p in tmp_path.iterdir() if p.is_dir()]) == 2  # two cache keys
+    with pytest.raises(ShapeTreeError, match="smooth"):
+        distance_matrix(curves, smooth=0.7, **kw)

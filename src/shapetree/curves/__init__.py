@@ -1,4 +1,4 @@
-"""Curves: validation, resampling, orientation, point files and silhouettes from images.
+"""Curves: validation, resampling, smoothing, orientation, point files and silhouettes from images.
 
 A curve is an ``(n, 2)`` float64 array of ``(x, y)`` points. Closed curves are stored without
 repeating the first point. Curves traced from images are in pixel coordinates with ``x`` the
@@ -8,7 +8,7 @@ clockwise on screen.
 
 from shapetree.curves._image import curve_from_image
 from shapetree.curves._io import load_curve, load_points
-from shapetree.curves._resample import point_at, resample
+from shapetree.curves._resample import point_at, resample, smooth
 from shapetree.curves._validate import as_curve, curve_length, orient, signed_area
 
 __all__ = [
@@ -21,4 +21,5 @@ __all__ = [
     "point_at",
     "resample",
     "signed_area",
+    "smooth",
 ]

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
-from shapetree.curves import as_curve, resample
+from shapetree.curves import as_curve, resample, smooth
 from shapetree.matching import MatchParams, match_cost, prepare_model, prepare_target
 
 __all__ = [
@@ -90,6 +90,9 @@ class DistanceParams:
     length_power : float
         λ grows as the relative subcurve length to this power
         (:func:`shapetree.matching.prepare_model`; the paper: 1).
+    smooth : float or None
+        Gaussian smoothing of each curve before resampling, as a fraction of its length
+        (:func:`shapetree.curves.smooth`); ``None``: none.
     """
 
     n_points: int | None = 50
@@ -100,6 +103,7 @@ class DistanceParams:
     mirror: bool = False
     band: float | None = None
     length_power: float = 1.0
+    smooth: float | None = None
 
     def __post_init__(self) -> None:
         if self.n_points is not None and int(self.n_points) < 4:
@@ -111,6 +115,8 @@ class DistanceParams:
             raise ShapeTreeError(f"weight must be a positive number, got {self.weight}")
         if not (np.isfinite(self.length_power) and self.length_power >= 0):
             raise ShapeTreeError(f"length_power must be >= 0, got {self.length_power}")
+        if self.smooth is not None and not (np.isfinite(self.smooth) and 0 <= self.smooth < 0.5):
+            raise ShapeTreeError(f"smooth must be in [0, 0.5), got {self.smooth}")
 
     @property
     def n_pass(self) -> int:
@@ -118,10 +124,15 @@ class DistanceParams:
         return 2 if self.mirror else 1
 
 
-def _prep_curves(curves: Sequence[ArrayLike], n_points: int | None, what: str) -> list[np.ndarray]:
+def _prep_curves(
+    curves: Sequence[ArrayLike], n_points: int | None, what: str, sigma: float | None = None
+) -> list[np.ndarray]:
     out = []
     for i, c in enumerate(curves):
         a = as_curve(c, closed=True, name=f"{what} {i}")
+        if sigma:
+            n_keep = a.shape[0] if n_points is None else int(n_points)
+            a = resample(smooth(a, float(sigma), closed=True), n_keep, closed=True)
         if n_points is not None and a.shape[0] != n_points:
             a = resample(a, int(n_points), closed=True)
         out.append(np.ascontiguousarray(a, dtype=np.float64))
@@ -136,6 +147,8 @@ def _cache_key(models: list[np.ndarray], targets: list[np.ndarray], p: DistanceP
         del spec["band"]
     if spec["length_power"] == 1.0:  # and keys of the paper's λ predate length_power
         del spec["length_power"]
+    if not spec["smooth"]:  # and keys without smoothing predate it
+        del spec["smooth"]
     h.update(json.dumps(spec, sort_keys=True).encode())
     for group in (models, targets):
         h.update(struct.pack("<Q", len(group)))
@@ -258,6 +271,7 @@ def directed_costs(
     mirror: bool = False,
     band: float | None = None,
     length_power: float = 1.0,
+    smooth: float | None = None,
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
     block: int = 8,
@@ -273,7 +287,7 @@ def directed_costs(
         Closed curves whose shape-trees are deformed (rows).
     targets : sequence of array_like, optional
         Closed curves deformed onto (columns); default ``models``.
-    n_points, weight, occlusion, n_trees, split, mirror, band, length_power
+    n_points, weight, occlusion, n_trees, split, mirror, band, length_power, smooth
         See :class:`DistanceParams`.
     workers : int
         Threads (the matching kernel releases the GIL).
@@ -296,10 +310,18 @@ def directed_costs(
         ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``).
     """
     p = DistanceParams(
-        n_points, weight, occlusion, int(n_trees), split, bool(mirror), band, float(length_power)
+        n_points,
+        weight,
+        occlusion,
+        int(n_trees),
+        split,
+        bool(mirror),
+        band,
+        float(length_power),
+        None if not smooth else float(smooth),
     )
-    ms = _prep_curves(models, p.n_points, "model curve")
-    ts = ms if targets is None else _prep_curves(targets, p.n_points, "target curve")
+    ms = _prep_curves(models, p.n_points, "model curve", p.smooth)
+    ts = ms if targets is None else _prep_curves(targets, p.n_points, "target curve", p.smooth)
     n, m = len(ms), len(ts)
     block = max(1, int(block))
     out = np.empty((p.n_pass, n, m))
@@ -429,6 +451,7 @@ def distance_matrix(
     mirror: bool = False,
     band: float | None = None,
     length_power: float = 1.0,
+    smooth: float | None = None,
     symmetrize: str | None = "min",
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
@@ -457,6 +480,11 @@ def distance_matrix(
         Mirror invariance: also deform the mirrored curve, keep the cheaper cost.
     band : float or None
         Pruned (banded) matching: maximum stretch factor of a subcurve; ``None``: exact.
+    length_power : float
+        λ grows as the relative subcurve length to this power (the paper: 1).
+    smooth : float or None
+        Gaussian smoothing of every curve before resampling, as a fraction of its length
+        (:func:`shapetree.curves.smooth`); e.g. 0.005 removes pixel staircases.
     symmetrize : {"min", "mean", "max", "none", "reverse"} or None
         How the two directions ψ(i, j) and ψ(j, i) are combined (see :func:`combine`);
         ``"none"`` uses ψ(query, database) only (for a rectangular matrix that halves the
@@ -496,6 +524,7 @@ def distance_matrix(
         mirror=mirror,
         band=band,
         length_power=length_power,
+        smooth=smooth,
         workers=workers,
         cache_dir=cache_dir,
         progress=progress,

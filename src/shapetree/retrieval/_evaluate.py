@@ -100,6 +100,13 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
         "default": None,
         "help": "shape-trees per model (rotated start points), best taken",
     },
+    "split": {
+        "type": str,
+        "default": None,
+        "choices": ["half", "best"],
+        "help": "midpoint of each shape-tree node: half (the middle sample) or best (the sample "
+        "whose triangle best approximates the subcurve, paper section 2)",
+    },
     "mirror": {
         "type": bool,
         "default": None,
@@ -114,6 +121,12 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
         "type": float,
         "default": 1.0,
         "help": "lambda grows as (relative subcurve length)^p; the paper uses 1",
+    },
+    "smooth": {
+        "type": float,
+        "default": None,
+        "help": "Gaussian smoothing of each traced outline before resampling, as a fraction "
+        "of its length (0: none)",
     },
     "symmetrize": {
         "type": str,
@@ -155,9 +168,11 @@ _MATCH_KEYS = (
     "weight",
     "occlusion",
     "n_trees",
+    "split",
     "mirror",
     "band",
     "length_power",
+    "smooth",
     "symmetrize",
 )
 
@@ -169,8 +184,10 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "weight": 1.0,
         "occlusion": None,
         "n_trees": 2,
+        "split": "half",
         "mirror": True,
         "band": None,
+        "smooth": None,
         "symmetrize": "none",
     },
     "mpeg7": {
@@ -178,8 +195,10 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "weight": 1.0,
         "occlusion": 1.0,
         "n_trees": 2,
+        "split": "half",
         "mirror": True,
         "band": 2.0,
+        "smooth": None,
         "symmetrize": "none",
     },
     "swedish_leaf": {
@@ -187,8 +206,10 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "weight": 1.0,
         "occlusion": None,
         "n_trees": 1,
+        "split": "best",
         "mirror": True,
         "band": 2.0,
+        "smooth": None,
         "symmetrize": "none",
     },
 }
@@ -231,7 +252,7 @@ def _resolve(name: str, params: dict[str, Any]) -> dict[str, Any]:
         if v is not None or k not in _MATCH_KEYS:
             p[k] = v
     # 0 means "off" for the optional numbers (handy on a command line)
-    for k in ("occlusion", "band"):
+    for k in ("occlusion", "band", "smooth"):
         if p[k] is not None and float(p[k]) == 0.0:
             p[k] = None
     if isinstance(p["classes"], str):
@@ -291,6 +312,7 @@ def evaluate(
     progress: bool = True,
     verbose: bool = True,
     command: str | None = None,
+    arrays: dict[str, Any] | None = None,
     **params: Any,
 ) -> dict[str, Any]:
     """Run one of the paper's benchmarks (Tables 1–3) and report it.
@@ -309,6 +331,9 @@ def evaluate(
         Print the table.
     command : str, optional
         The command line to record (default: ``python -m ... evaluate`` reconstructed).
+    arrays : dict, optional
+        Filled with ``costs`` (the directed costs, shape ``(n_pass, n, n)``, see
+        :func:`directed_costs`) and ``labels``, for further analysis without recomputing.
     **params
         Any key of :data:`EVAL_PARAMS`; matching options left at ``None`` take the
         dataset's tuned value from :data:`DATASET_DEFAULTS`.
@@ -334,7 +359,8 @@ def evaluate(
     p = _resolve(name, params)
     ds = datasets.load(
         name,
-        n_points=p["n_points"],
+        # smoothing works on the traced outline, so resampling waits for the engine
+        n_points=None if p["smooth"] else p["n_points"],
         progress=progress,
         classes=p["classes"],
         per_class=p["per_class"],
@@ -348,9 +374,11 @@ def evaluate(
         weight=p["weight"],
         occlusion=p["occlusion"],
         n_trees=p["n_trees"],
+        split=p["split"],
         mirror=bool(p["mirror"]),
         band=p["band"],
         length_power=p["length_power"],
+        smooth=p["smooth"],
         workers=p["workers"],
         cache_dir=p["cache_dir"],
         block=p["block"],
@@ -359,6 +387,8 @@ def evaluate(
         stats=stats,
     )
     seconds_matrix = time.perf_counter() - t0
+    if arrays is not None:
+        arrays.update(costs=costs, labels=labels)
     D = combine(costs, p["symmetrize"])
     rec: dict[str, Any] = {"dataset": name}
     pairwise = _score(name, D, labels, p)
@@ -411,9 +441,13 @@ def evaluate(
             pictures.append(
                 Path(
                     plot_bullseye_per_class(
-                        rec["bullseye_per_class"],
+                        pairwise["bullseye_per_class"],
                         out / f"{name}_bullseye_per_class.png",
-                        overall=rec["bullseye"],
+                        overall=pairwise["bullseye"],
+                        second=rec["reranked"]["bullseye_per_class"] if "reranked" in rec else None,
+                        second_overall=rec["reranked"]["bullseye"] if "reranked" in rec else None,
+                        labels=("pairwise", "TPG re-ranked"),
+                        title="MPEG-7 bull's-eye per class (bars: pairwise)",
                     )
                 ).name
             )

@@ -103,6 +103,9 @@ def plot_bullseye_per_class(
     *,
     overall: float | None = None,
     title: str = "Bull's-eye per class",
+    second: dict[str, float] | None = None,
+    labels: tuple[str, str] = ("pairwise", "re-ranked"),
+    second_overall: float | None = None,
 ) -> Path:
     """Horizontal bar chart of per-class bull's-eye scores (sorted, worst at the bottom).
 
@@ -114,6 +117,12 @@ def plot_bullseye_per_class(
     overall : float, optional
         Drawn as a vertical line.
     title : str
+    second : dict, optional
+        A second score per class (e.g. after re-ranking), drawn as dots on the bars.
+    labels : (str, str)
+        Legend names of ``per_class`` and ``second``.
+    second_overall : float, optional
+        Overall value of ``second``, drawn as a dotted line.
 
     Returns
     -------
@@ -129,12 +138,23 @@ def plot_bullseye_per_class(
     vals = np.array([v for _, v in items])
     fig, ax = plt.subplots(figsize=(7, max(3.0, 0.16 * len(items) + 1)))
     colours = ["red" if v < 70 else "tab:orange" if v < 90 else "tab:blue" for v in vals]
-    ax.barh(np.arange(len(vals)), vals, color=colours)
+    ax.barh(np.arange(len(vals)), vals, color=colours, label=labels[0] if second else None)
+    if second:
+        ax.plot([second[k] for k in names], np.arange(len(vals)), "k.", ms=4, label=labels[1])
     ax.set_yticks(np.arange(len(vals)), names, fontsize=6)
     ax.set_xlim(0, 100)
     ax.set_xlabel("bull's-eye (%)")
     if overall is not None:
         ax.axvline(overall, color="black", ls="--", lw=1, label=f"all: {overall:.2f}%")
+    if second_overall is not None:
+        ax.axvline(
+            second_overall,
+            color="black",
+            ls=":",
+            lw=1,
+            label=f"all, {labels[1]}: {second_overall:.2f}%",
+        )
+    if overall is not None or second:
         ax.legend(loc="lower right", fontsize=8)
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
