@@ -128,3 +128,18 @@ def test_usage_problems_are_one_line(capsys, tmp_path: Path, argv: list[str], wo
     assert code == 2
     assert words in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "D.npz").exists() and not (tmp_path / "D.txt").exists()
+
+
+def test_search_with_smoothing(capsys, folder: Path, tmp_path: Path):
+    out_json = tmp_path / "s.json"
+    args = ["search", folder / "hand.csv", folder, "--points", "32", "--trees", "1"]
+    code, out, err = run(capsys, *args, "--smooth", "0.005", "--json", out_json, "--no-progress")
+    assert code == 0, err
+    rec = json.loads(out_json.read_text())
+    assert rec["params"]["smooth"] == 0.005
+    assert [r["shape"].split("/")[-1] for r in rec["ranking"][:2]] == ["hand.csv", "hand-copy.npy"]
+    # smoothing changes the numbers (the query matches its own smoothed self at 0)
+    code, _, _ = run(capsys, *args, "--json", tmp_path / "p.json", "--no-progress")
+    plain = json.loads((tmp_path / "p.json").read_text())["ranking"]
+    assert rec["ranking"][1]["distance"] != plain[1]["distance"]
+    assert rec["ranking"][0]["distance"] == 0.0

@@ -97,14 +97,28 @@ def expand_specs(specs: list[str]) -> list[str]:
     return out
 
 
+def read_outline(spec: str, *, n_points: int, smooth: float = 0.0) -> np.ndarray:
+    """One closed outline, optionally smoothed (fraction of its length), resampled."""
+    from shapetree.curves import resample
+    from shapetree.curves import smooth as smooth_curve
+
+    shape = load_shape(spec, n_points=None if smooth else n_points, closed=True)
+    if not shape.closed:
+        raise ShapeTreeError(f"{spec}: is an open curve; search compares closed outlines")
+    if smooth:
+        return resample(smooth_curve(shape.points, smooth, closed=True), n_points, closed=True)
+    return shape.points
+
+
 def load_shapes(
-    specs: list[str], *, n_points: int, skip_bad: bool, progress: bool
+    specs: list[str], *, n_points: int, skip_bad: bool, progress: bool, smooth: float = 0.0
 ) -> tuple[list[np.ndarray], list[str]]:
     """Read every shape as a closed curve; report every bad file, not just the first.
 
     Returns
     -------
     curves : list of ndarray, each shape (n_points, 2)
+        Smoothed first when ``smooth > 0`` (fraction of the length).
     names : list of str
         The spec of each curve that was read.
     """
@@ -115,14 +129,10 @@ def load_shapes(
     bad: list[str] = []
     for spec in tqdm(specs, desc="reading shapes", unit="shape", disable=not progress):
         try:
-            shape = load_shape(spec, n_points=n_points, closed=True)
+            curves.append(read_outline(spec, n_points=n_points, smooth=smooth))
         except (ShapeTreeError, OSError) as exc:
             bad.append(" ".join(str(exc).split()))
             continue
-        if not shape.closed:
-            bad.append(f"{spec}: is an open curve; search compares closed outlines")
-            continue
-        curves.append(shape.points)
         names.append(spec)
     if bad:
         listing = "; ".join(bad[:5]) + (f"; and {len(bad) - 5} more" if len(bad) > 5 else "")
@@ -163,6 +173,14 @@ def _add_matching(p: argparse.ArgumentParser) -> None:
         default=0.0,
         metavar="K",
         help="replacement cost factor for missing/extra parts (0: off)",
+    )
+    g.add_argument(
+        "--smooth",
+        type=nonneg_float,
+        default=0.0,
+        metavar="S",
+        help="Gaussian smoothing of each outline before resampling, as a fraction of its "
+        "length, e.g. 0.005 against pixel staircases (0: off)",
     )
     g.add_argument(
         "--band",
@@ -250,6 +268,7 @@ def _params(args: argparse.Namespace) -> dict[str, Any]:
         "occlusion": args.occlusion,
         "band": args.band,
         "mirror": args.mirror,
+        "smooth": args.smooth,
     }
 
 
@@ -261,17 +280,16 @@ def cmd_search(args: argparse.Namespace) -> int:
     if args.plot:
         check_figure_path(args.plot)
     progress = not args.no_progress
-    query = load_shape(args.query, n_points=args.points, closed=True)
-    if not query.closed:
-        raise ShapeTreeError(f"{args.query}: is an open curve; search compares closed outlines")
+    query_points = read_outline(args.query, n_points=args.points, smooth=args.smooth)
     curves, names = load_shapes(
         expand_specs(args.database),
         n_points=args.points,
         skip_bad=args.skip_bad,
         progress=progress,
+        smooth=args.smooth,
     )
     d = distance_matrix(
-        [query.points], curves, symmetrize="none", progress=progress, **_matching_kwargs(args)
+        [query_points], curves, symmetrize="none", progress=progress, **_matching_kwargs(args)
     )[0]
     d = np.maximum(d, 0.0)  # a rounding error below zero is a perfect match
     order = np.argsort(d, kind="stable")
@@ -297,7 +315,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         from shapetree.retrieval._figures import plot_search
 
         path = plot_search(
-            query.points,
+            query_points,
             [curves[j] for j in order[:k]],
             [f"{Path(names[j]).name}\n{d[j]:.4f}" for j in order[:k]],
             args.plot,
@@ -322,6 +340,7 @@ def cmd_distances(args: argparse.Namespace) -> int:
         n_points=args.points,
         skip_bad=args.skip_bad,
         progress=progress,
+        smooth=args.smooth,
     )
     if len(curves) < 2:
         raise ShapeTreeError(f"need at least 2 shapes, got {len(curves)}")
