@@ -86,3 +86,11 @@ def test_bad_parameters() -> None:
         tpg_rerank(d, alpha=1.0)
     with pytest.raises(ShapeTreeError, match="k must"):
         tpg_rerank(d, k=0)
+
+
+def test_defaults_adapt_to_small_sets() -> None:
+    d, _ = _points_on_chains(n_chains=2, per=3)  # 6 items < the default 10 neighbours
+    r = tpg_rerank(d)
+    assert r.shape == (6, 6) and np.isfinite(r).all()
+    with pytest.raises(ShapeTreeError, match="k_sigma"):
+        tpg_rerank(d, k_sigma=6)

@@ -85,9 +85,9 @@ def knn_affinity(D: ArrayLike, k: int = 10, k_sigma: int = 10) -> np.ndarray:
 
 def tpg_rerank(
     D: ArrayLike,
-    k: int = RERANK_DEFAULTS["k"],
+    k: int | None = None,
     alpha: float = RERANK_DEFAULTS["alpha"],
-    k_sigma: int = RERANK_DEFAULTS["k_sigma"],
+    k_sigma: int | None = None,
     tol: float = 1e-9,
     max_iter: int = 500,
 ) -> np.ndarray:
@@ -101,12 +101,14 @@ def tpg_rerank(
     ----------
     D : array_like, shape (n, n)
         Non-negative distances (need not be symmetric), ``D[q, x]`` for query ``q``.
-    k : int
-        Neighbours per item in the diffusion graph (about the size of a class or less).
+    k : int, optional
+        Neighbours per item in the diffusion graph (about the size of a class or less);
+        default ``RERANK_DEFAULTS["k"]`` (10), or ``n`` for fewer items.
     alpha : float
         Row sum of ``P``, ``0 < alpha < 1``; the series converges like ``alpha^(2t)``.
-    k_sigma : int
-        Neighbours that set each item's bandwidth.
+    k_sigma : int, optional
+        Neighbours that set each item's bandwidth; default ``RERANK_DEFAULTS["k_sigma"]``
+        (10), or ``n - 1`` for fewer items.
     tol : float
         Stop when an iteration changes ``Q`` by less than ``tol * max(Q)``.
     max_iter : int
@@ -119,6 +121,11 @@ def tpg_rerank(
     """
     if not 0.0 < float(alpha) < 1.0:
         raise ShapeTreeError(f"alpha must be in (0, 1), got {alpha}")
+    n_items = _check_square(D).shape[0]
+    if k is None:
+        k = min(RERANK_DEFAULTS["k"], n_items)
+    if k_sigma is None:
+        k_sigma = min(RERANK_DEFAULTS["k_sigma"], n_items - 1)
     p = float(alpha) * knn_affinity(D, k=k, k_sigma=k_sigma)
     n = p.shape[0]
     eye = np.eye(n)
