@@ -261,6 +261,16 @@ def _matching_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def _load_args(specs: list[str], args: argparse.Namespace) -> tuple[list[np.ndarray], list[str]]:
+    return load_shapes(
+        expand_specs(specs),
+        n_points=args.points,
+        skip_bad=args.skip_bad,
+        progress=not args.no_progress,
+        smooth=args.smooth,
+    )
+
+
 def _params(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "n_points": args.points,
@@ -281,13 +291,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         check_figure_path(args.plot)
     progress = not args.no_progress
     query_points = read_outline(args.query, n_points=args.points, smooth=args.smooth)
-    curves, names = load_shapes(
-        expand_specs(args.database),
-        n_points=args.points,
-        skip_bad=args.skip_bad,
-        progress=progress,
-        smooth=args.smooth,
-    )
+    curves, names = _load_args(args.database, args)
     d = distance_matrix(
         [query_points], curves, symmetrize="none", progress=progress, **_matching_kwargs(args)
     )[0]
@@ -335,13 +339,7 @@ def cmd_distances(args: argparse.Namespace) -> int:
     if out.is_dir():
         raise ShapeTreeError(f"{out}: is a directory, expected a .npz file name")
     progress = not args.no_progress
-    curves, names = load_shapes(
-        expand_specs(args.shapes),
-        n_points=args.points,
-        skip_bad=args.skip_bad,
-        progress=progress,
-        smooth=args.smooth,
-    )
+    curves, names = _load_args(args.shapes, args)
     if len(curves) < 2:
         raise ShapeTreeError(f"need at least 2 shapes, got {len(curves)}")
     cache = None if args.no_cache else Path(args.cache) if args.cache else _default_cache()
