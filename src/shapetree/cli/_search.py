@@ -163,7 +163,7 @@ def _add_matching(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--trees",
         type=positive_int,
-        default=2,
+        default=3,
         metavar="T",
         help="shape-trees per query (different start points), best kept",
     )
@@ -185,9 +185,10 @@ def _add_matching(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--band",
         type=nonneg_float,
-        default=0.0,
+        default=4.0,
         metavar="B",
-        help="pruned matching, max stretch of a subcurve, e.g. 2 (0: exact); 3-5x faster",
+        help="pruned matching: max stretch of a subcurve (0: exact matching, 2-4x slower; "
+        "on Kimia-99 3 trees + band 4 ranked as well as exact matching)",
     )
     g.add_argument(
         "--mirror",
@@ -199,7 +200,7 @@ def _add_matching(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--skip-bad",
         action="store_true",
-        help="skip unreadable shapes with a warning (default: stop and list them)",
+        help="skip unreadable shapes with a warning instead of stopping with a list of them",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
