@@ -19,30 +19,23 @@ import shlex
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS  # noqa: E402
 
 from shapetree.retrieval import (  # noqa: E402
     EVAL_PARAMS,
     SYMMETRIZE,
-    bullseye,
     combine,
     evaluate,
-    kimia_ranks,
-    nn_accuracy_splits,
+    protocol_score,
 )
 
-
-def _score(name: str, D: np.ndarray, labels: np.ndarray, p: dict) -> object:
-    if name == "kimia99":
-        return [int(x) for x in kimia_ranks(D, labels)]
-    if name == "mpeg7":
-        return round(bullseye(D, labels, k=p["k"]), 4)
-    return [
-        round(x, 4) for x in nn_accuracy_splits(D, labels, p["n_train"], p["n_splits"], p["seed"])
-    ]
+#: The ablation's value per set: the rank row, the bull's-eye, or [mean, std] accuracy.
+_HEADLINE = {
+    "kimia99": lambda r: r["ranks"],
+    "mpeg7": lambda r: r["bullseye"],
+    "swedish_leaf": lambda r: [r["accuracy_mean"], r["accuracy_std"]],
+}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -90,8 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_ablation and p["mirror"]:
         c, labels = arrays["costs"], arrays["labels"]
         rec["ablation"] = {
-            f"mirror={mir} symmetrize={s}": _score(
-                args.dataset, combine(c if mir else c[:1], s), labels, p
+            f"mirror={mir} symmetrize={s}": _HEADLINE[args.dataset](
+                protocol_score(args.dataset, combine(c if mir else c[:1], s), labels, p)
             )
             for mir in (False, True)
             for s in SYMMETRIZE

@@ -143,3 +143,11 @@ def test_search_with_smoothing(capsys, folder: Path, tmp_path: Path):
     plain = json.loads((tmp_path / "p.json").read_text())["ranking"]
     assert rec["ranking"][1]["distance"] != plain[1]["distance"]
     assert rec["ranking"][0]["distance"] == 0.0
+
+
+def test_distances_bad_csv_path_writes_nothing(capsys, folder: Path, tmp_path: Path):
+    (tmp_path / "csvdir").mkdir()
+    args = ["distances", folder, "-o", tmp_path / "D.npz", "--csv", tmp_path / "csvdir"]
+    code, out, err = run(capsys, *args, "--no-progress", "--no-cache")
+    assert code == 2 and "is a directory" in err
+    assert not (tmp_path / "D.npz").exists()

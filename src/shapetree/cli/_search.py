@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import os
+import json
 import re
 from pathlib import Path
 from typing import Any
@@ -23,6 +23,7 @@ from shapetree.cli._common import (
     warn,
     write_json,
 )
+from shapetree.cli._evaluate import _default_distance_cache
 
 SEARCH_EPILOG = """\
 examples:
@@ -143,12 +144,6 @@ def load_shapes(
             )
         warn(f"skipped {len(bad)} unreadable shape(s): {listing}")
     return curves, names
-
-
-def _default_cache() -> Path:
-    env = os.environ.get("SHAPETREE_CACHE", "").strip()
-    base = Path(env).expanduser() if env else Path.home() / ".cache" / "shapetree"
-    return base / "distances" / "custom"
 
 
 def _add_matching(p: argparse.ArgumentParser) -> None:
@@ -339,11 +334,19 @@ def cmd_distances(args: argparse.Namespace) -> int:
         raise ShapeTreeError(f"{out}: the output must be a .npz file")
     if out.is_dir():
         raise ShapeTreeError(f"{out}: is a directory, expected a .npz file name")
+    if args.csv and Path(args.csv).is_dir():
+        raise ShapeTreeError(f"{args.csv}: is a directory, expected a .csv file name")
     progress = not args.no_progress
     curves, names = _load_args(args.shapes, args)
     if len(curves) < 2:
         raise ShapeTreeError(f"need at least 2 shapes, got {len(curves)}")
-    cache = None if args.no_cache else Path(args.cache) if args.cache else _default_cache()
+    cache = (
+        None
+        if args.no_cache
+        else Path(args.cache)
+        if args.cache
+        else _default_distance_cache("custom")
+    )
     d = distance_matrix(
         curves,
         symmetrize=args.symmetrize,
@@ -352,10 +355,7 @@ def cmd_distances(args: argparse.Namespace) -> int:
         **_matching_kwargs(args),
     )
     d = np.maximum(d, 0.0)
-    import json
-
     params = dict(_params(args), symmetrize=args.symmetrize)
-    out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(out, "wb") as fh:
         np.savez(fh, D=d, names=np.array(names), params=np.array(json.dumps(params)))
     info(f"{len(names)} shapes, {len(names) ** 2} ordered pairs -> {out}")

@@ -16,6 +16,7 @@ from shapetree.retrieval._evaluate import (
     evaluate,
     format_table,
     machine_info,
+    protocol_score,
 )
 from shapetree.retrieval._figures import plot_bullseye_per_class, plot_retrieval_grid
 from shapetree.retrieval._protocols import (
@@ -50,6 +51,7 @@ __all__ = [
     "nn_accuracy_splits",
     "plot_bullseye_per_class",
     "plot_retrieval_grid",
+    "protocol_score",
     "ranked_neighbours",
     "tpg_rerank",
 ]

@@ -35,6 +35,7 @@ __all__ = [
     "evaluate",
     "format_table",
     "machine_info",
+    "protocol_score",
 ]
 
 DATASETS = ("kimia99", "mpeg7", "swedish_leaf")
@@ -391,13 +392,13 @@ def evaluate(
         arrays.update(costs=costs, labels=labels)
     D = combine(costs, p["symmetrize"])
     rec: dict[str, Any] = {"dataset": name}
-    pairwise = _score(name, D, labels, p)
+    pairwise = protocol_score(name, D, labels, p)
     rec["pairwise"] = pairwise
     rows: list[tuple[str, Any]] = [("Shape-tree (shapetree, pairwise)", _headline(name, pairwise))]
     if p["rerank"] == "tpg":
         t1 = time.perf_counter()
         D = tpg_rerank(D)
-        reranked = _score(name, D, labels, p)
+        reranked = protocol_score(name, D, labels, p)
         reranked["seconds"] = round(time.perf_counter() - t1, 2)
         reranked["method"] = "tpg"
         reranked["params"] = dict(RERANK_DEFAULTS)
@@ -475,8 +476,14 @@ def evaluate(
     return rec
 
 
-def _score(name: str, D: np.ndarray, labels: np.ndarray, p: dict[str, Any]) -> dict[str, Any]:
-    """The protocol's score of one distance matrix, as JSON-ready values."""
+def protocol_score(
+    name: str, D: np.ndarray, labels: np.ndarray, p: dict[str, Any]
+) -> dict[str, Any]:
+    """The protocol's score of one distance matrix, as JSON-ready values.
+
+    ``p`` needs ``k`` (mpeg7) or ``n_train``, ``n_splits``, ``seed`` (swedish_leaf); the
+    keys returned are those of :func:`evaluate`'s record (``ranks``, ``bullseye``, ...).
+    """
     if name == "kimia99":
         ranks = kimia_ranks(D, labels)
         return {"ranks": [int(x) for x in ranks], "ranks_sum": int(ranks.sum())}
