@@ -44,6 +44,20 @@ def test_eval_params_are_cli_ready() -> None:
     assert "87.70%" in format_table("mpeg7", 90.0)
 
 
+def test_dataset_defaults_reach_evaluate() -> None:
+    from shapetree.retrieval._evaluate import _MATCH_KEYS, DATASET_DEFAULTS, _resolve
+
+    for name, tuned in DATASET_DEFAULTS.items():
+        assert set(_MATCH_KEYS) <= set(tuned), name  # every matching option is set per set
+        assert _resolve(name, {}) | tuned == _resolve(name, {})
+    # the reported Swedish setting weighs global nodes more (lambda ~ length^2) ...
+    assert _resolve("swedish_leaf", {})["length_power"] == 2.0
+    assert _resolve("kimia99", {})["length_power"] == 1.0
+    # ... and an explicit value, or None ("per dataset"), is honoured
+    assert _resolve("swedish_leaf", {"length_power": 1.0})["length_power"] == 1.0
+    assert _resolve("swedish_leaf", {"length_power": None})["length_power"] == 2.0
+
+
 @pytest.mark.slow
 def test_kimia99_end_to_end(out: Path) -> None:
     if not _have("kimia99"):

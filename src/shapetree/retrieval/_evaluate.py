@@ -120,7 +120,7 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
     },
     "length_power": {
         "type": float,
-        "default": 1.0,
+        "default": None,
         "help": "lambda grows as (relative subcurve length)^p; the paper uses 1",
     },
     "smooth": {
@@ -188,6 +188,7 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "split": "half",
         "mirror": True,
         "band": 4.0,
+        "length_power": 1.0,
         "smooth": None,
         "symmetrize": "none",
     },
@@ -199,6 +200,7 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "split": "half",
         "mirror": True,
         "band": 3.0,
+        "length_power": 1.0,
         "smooth": None,
         "symmetrize": "none",
     },
@@ -210,6 +212,7 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "split": "best",
         "mirror": True,
         "band": 2.0,
+        "length_power": 2.0,  # top-level (global) deformations weigh more; see swedish_leaf.json
         "smooth": None,
         "symmetrize": "none",
     },
