@@ -17,6 +17,7 @@ from shapetree.detection import (
     dr_fppi_curve,
     load_model,
     outline_strokes,
+    recall_any,
 )
 
 _DEFAULT = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets"
@@ -90,3 +91,17 @@ def test_dr_fppi_curve_counts() -> None:
     assert fppi.tolist() == [0.0, 0.5, 1.0]  # a duplicate is a false positive
     assert dr_at_fppi(fppi, dr, 0.3) == 1.0
     assert dr_at_fppi(np.array([0.5]), np.array([1.0]), 0.4) == 0.0
+
+
+def test_recall_any_is_the_ceiling_of_the_curve() -> None:
+    gts = {"a": np.array([[0, 0, 10, 10.0]]), "b": np.array([[0, 0, 10, 10.0], [20, 20, 30, 30.0]])}
+    dets = [
+        ("b", 0.9, [0, 0, 5, 5]),  # IoU 0.25: a hit at 0.2, a miss at 0.5
+        ("a", 0.1, [0, 0, 10, 10]),  # ranked last, still counts for the ceiling
+        ("b", 0.5, [40, 40, 50, 50]),  # overlaps nothing
+    ]
+    assert recall_any(dets, gts, 0.2) == pytest.approx(2 / 3)
+    assert recall_any(dets, gts, 0.5) == pytest.approx(1 / 3)
+    fppi, dr, _ = dr_fppi_curve(dets, gts, n_images=2, iou_thr=0.2)
+    assert dr.max() == pytest.approx(recall_any(dets, gts, 0.2))
+    assert recall_any([], {"a": np.zeros((0, 4))}, 0.5) == 0.0

@@ -15,7 +15,13 @@ from shapetree.detection._detect import (
     detect_detailed,
 )
 from shapetree.detection._edges import edge_map, load_edges, load_image
-from shapetree.detection._ethz_eval import ETHZ_CLASSES, dr_at_fppi, dr_fppi_curve, evaluate_ethz
+from shapetree.detection._ethz_eval import (
+    ETHZ_CLASSES,
+    dr_at_fppi,
+    dr_fppi_curve,
+    evaluate_ethz,
+    recall_any,
+)
 from shapetree.detection._files import (
     detect_to_files,
     plot_contours,
@@ -42,6 +48,7 @@ __all__ = [
     "detect_to_files",
     "dr_at_fppi",
     "dr_fppi_curve",
+    "recall_any",
     "evaluate_ethz",
     "plot_contours",
     "plot_detection",

@@ -150,6 +150,27 @@ def dr_fppi_curve(
     return np.asarray(fppi), np.asarray(dr), np.asarray(sc)
 
 
+def recall_any(
+    dets: Sequence[tuple[str, float, Sequence[float]]],
+    gts: dict[str, np.ndarray],
+    iou_thr: float,
+) -> float:
+    """Share of ground-truth boxes overlapped (IoU >= ``iou_thr``) by *any* detection.
+
+    The ceiling of the detection rate at unlimited FPPI for the detections kept (``k``
+    per image): what a perfect ranking of these detections across images would reach.
+    """
+    n_gt = sum(len(g) for g in gts.values())
+    if n_gt == 0:
+        return 0.0
+    hit = {k: np.zeros(len(g), bool) for k, g in gts.items()}
+    for key, _score, box in dets:
+        g = gts.get(key)
+        if g is not None and len(g):
+            hit[key] |= _iou(np.asarray(box, float), g) >= iou_thr
+    return float(sum(h.sum() for h in hit.values()) / n_gt)
+
+
 def dr_at_fppi(fppi: np.ndarray, dr: np.ndarray, at: float) -> float:
     """Highest detection rate reached with FPPI <= ``at`` (0 if none)."""
     ok = fppi <= at + 1e-12
@@ -312,10 +333,11 @@ def evaluate_ethz(
             ]
             fppi, dr, _ = dr_fppi_curve(dets, gts, len(imgs), thr)
             curves[(c, thr)] = (fppi, dr)
+            out[key].setdefault("recall_any_k", {})[c] = round(recall_any(dets, gts, thr), 4)
             for at in (0.3, 0.4):
                 out[key][f"dr_fppi_{at}"][c] = round(dr_at_fppi(fppi, dr, at), 4)
-        for at in (0.3, 0.4):
-            v = out[key][f"dr_fppi_{at}"]
+        for sub in [f"dr_fppi_{at}" for at in (0.3, 0.4)] + ["recall_any_k"]:
+            v = out[key][sub]
             v["mean"] = round(float(np.mean([v[c] for c in cls_list])), 4)
     secs = np.array([d["seconds"] for d in results.values()])
     out["seconds_per_image_median"] = round(float(np.median(secs)), 4)
