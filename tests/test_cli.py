@@ -378,7 +378,7 @@ def test_evaluate_ethz_and_detect_are_wired(capsys, monkeypatch, tmp_path):
         return {"overlap_20": {"dr_fppi_0.4": {"mean": 0.5}}}
 
     class Det:
-        cost, coverage, bbox = 0.25, 0.9, (1.0, 2.0, 30.0, 40.0)
+        cost, score, coverage, bbox = 0.25, -0.2875, 0.9, (1.0, 2.0, 30.0, 40.0)
 
     def fake_detect(model, image, **kwargs):
         calls["detect"] = (model, image, kwargs)
@@ -424,4 +424,4 @@ def test_evaluate_ethz_and_detect_are_wired(capsys, monkeypatch, tmp_path):
     model, image, kw = calls["detect"]
     assert (model, image, kw["edges_path"], kw["k"]) == ("m.png", "i.jpg", "e.png", 2)
     assert kw["out_png"] == str(tmp_path / "d.png") and kw["out_json"] == str(tmp_path / "d.json")
-    assert "0.2500" in out and "(1, 2, 30, 40)" in out
+    assert "0.2500" in out and "-0.2875" in out and "(1, 2, 30, 40)" in out

@@ -172,3 +172,28 @@ def test_evidence_costs_terms() -> None:
     assert tiny[0, 0, 1] == pytest.approx(0.5 * 0.1 * r)
     off = _evidence_costs(DetectParams(size_cost=0.0, min_perimeter=0.0), frac, [1.0], [20.0])
     assert np.all(off == 0.0)
+
+
+def test_frame_prior_reorders_by_image_share() -> None:
+    from shapetree.detection import DetectParams
+
+    conts, true_box = _scene(2, removed=[(1.0, 1.6)], n_clutter=20)
+    model = make_model(_shape(MODEL_T), m=24)
+    image = np.zeros((320, 420))
+    plain = detect(model, image, contours=conts, k=4, frame_prior=0.0)
+    assert [d.score for d in plain] == pytest.approx([-d.cost for d in plain])
+    w = DetectParams().frame_prior
+    assert w > 0
+    ranked = detect(model, image, contours=conts, k=4)  # default prior, image size known
+    # the same detections (the prior does not change which are kept) ...
+    assert sorted(d.cost for d in ranked) == pytest.approx(sorted(d.cost for d in plain))
+    for d in ranked:
+        x1, y1, x2, y2 = d.bbox
+        share = min((x2 - x1) * (y2 - y1) / (320 * 420), 1.0)
+        assert d.score == pytest.approx(-d.cost + w * 0.5 * np.log(share))
+    # ... ranked by the new score, and the object still comes first
+    assert [d.score for d in ranked] == sorted((d.score for d in ranked), reverse=True)
+    assert _iou(ranked[0].bbox, true_box) > 0.7
+    # without an image the size of the frame is unknown: scores stay -cost
+    none = detect(model, None, contours=conts, k=4)
+    assert [d.score for d in none] == pytest.approx([-d.cost for d in none])

@@ -346,10 +346,11 @@ def cmd_detect(args: argparse.Namespace) -> int:
         raise ShapeTreeError(f"bad detection parameter: {exc}") from None
     info(f"{len(dets)} detection(s) of {args.model} in {args.image}")
     if dets:
-        info(f"{'rank':>4}  {'cost':>9}  {'coverage':>8}  box (x1, y1, x2, y2)")
+        info(f"{'rank':>4}  {'score':>9}  {'cost':>9}  {'coverage':>8}  box (x1, y1, x2, y2)")
         for i, d in enumerate(dets, start=1):
             box = ", ".join(f"{v:.0f}" for v in d.bbox)
-            info(f"{i:>4}  {d.cost:>9.4f}  {d.coverage:>8.2f}  ({box})")
+            info(f"{i:>4}  {d.score:>9.4f}  {d.cost:>9.4f}  {d.coverage:>8.2f}  ({box})")
+        info("ranked by score = -cost + frame_prior * log(sqrt(box share of the image))")
     if args.output:
         info(f"picture: {args.output}")
     if args.json:

@@ -84,6 +84,16 @@ class DetectParams:
         See ``size_cost`` (120 px, 240 px; 0 disables the cut-off).  On ETHZ
         the smallest ground-truth object (an apple logo) is 58 px on its
         longer side, about 200 px around.
+    frame_prior : float
+        Image-relative size prior on the *ranking score* (not on the cost): a
+        kept detection whose box covers a share ``r`` of the image area scores
+        ``-cost + frame_prior * log(sqrt(r))``, so of two equally cheap matches
+        the one that fills more of the picture ranks first, in its image and
+        across images (0.05; 0 ranks by cost alone).  It changes neither the
+        stitching nor which detections are kept, only their order.  It encodes
+        that photographed objects tend to fill the frame: on ETHZ it lifts the
+        mean DR at 0.4 FPPI from 0.613 to about 0.70 (see the README), and it is
+        off where the image size is unknown (``contours=`` without an image).
     """
 
     m: int = 30
@@ -114,6 +124,7 @@ class DetectParams:
     size_cost: float = 0.5
     min_perimeter: float = 120.0
     full_perimeter: float = 240.0
+    frame_prior: float = 0.05
 
     def as_dict(self) -> dict[str, Any]:
         """All parameters as a JSON-friendly dict."""
@@ -129,7 +140,9 @@ class Detection:
     cost : float
         Total matching cost (model-fraction units; lower is better).
     score : float
-        ``-cost`` (higher is better), used to rank detections.
+        Ranking score, higher is better: ``-cost``, plus the image-relative
+        size prior ``DetectParams.frame_prior * log(sqrt(box share of image))``
+        when the image size is known.
     bbox : tuple of float
         ``(x1, y1, x2, y2)`` in px: box of the matched image points and of the
         gap model points mapped by the similarity fitted to the matched ones.
@@ -331,6 +344,14 @@ def _evidence_costs(
     return out
 
 
+def _frame_scored(det: Detection, shape: tuple[int, ...], weight: float) -> Detection:
+    """``det`` with the image-relative size prior of ``DetectParams.frame_prior`` in its score."""
+    x1, y1, x2, y2 = det.bbox
+    area = max(x2 - x1, 1.0) * max(y2 - y1, 1.0)
+    share = min(area / float(shape[0] * shape[1]), 1.0)
+    return dataclasses.replace(det, score=-det.cost + weight * 0.5 * float(np.log(share)))
+
+
 def _as_image(image: ArrayLike | str | os.PathLike[str] | None) -> NDArray | None:
     if image is None:
         return None
@@ -483,6 +504,9 @@ def detect_detailed(
         kept_boxes = np.vstack([kept_boxes, b])
         if len(kept) >= k:
             break
+    if p.frame_prior and e.size:
+        kept = [_frame_scored(d, e.shape, p.frame_prior) for d in kept]
+        kept.sort(key=lambda d: -d.score)
     timings["select"] = time.perf_counter() - t0
     run.detections = kept
     return run
