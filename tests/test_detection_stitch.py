@@ -197,3 +197,23 @@ def test_frame_prior_reorders_by_image_share() -> None:
     # without an image the size of the frame is unknown: scores stay -cost
     none = detect(model, None, contours=conts, k=4)
     assert [d.score for d in none] == pytest.approx([-d.cost for d in none])
+
+
+def test_border_margin_ignores_the_picture_frame() -> None:
+    from shapetree.detection._detect import _without_border
+
+    e = np.ones((50, 60))
+    out = _without_border(e, 6.0)
+    assert out[6:-6, 6:-6].min() == 1.0 and out[6:-6, 6:-6].size == 38 * 48
+    assert out.sum() == 38 * 48 and e.min() == 1.0  # input untouched
+    assert _without_border(e, 0.0) is e
+    # an edge map holding only a frame 2 px inside the border: nothing is traced
+    frame = np.zeros((120, 160))
+    frame[2, 2:-2] = frame[-3, 2:-2] = frame[2:-2, 2] = frame[2:-2, -3] = 1.0
+    square = make_model(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]), m=16)
+    from shapetree.detection import detect_detailed
+
+    run = detect_detailed(square, None, edges=frame, k=2)
+    assert run.contours == [] and run.detections == []
+    kept = detect_detailed(square, None, edges=frame, k=2, border_margin=0.0)
+    assert kept.contours  # the frame itself is traced when the margin is off

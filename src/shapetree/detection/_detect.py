@@ -84,6 +84,11 @@ class DetectParams:
         See ``size_cost`` (120 px, 240 px; 0 disables the cut-off).  On ETHZ
         the smallest ground-truth object (an apple logo) is 58 px on its
         longer side, about 200 px around.
+    border_margin : float
+        Edge pixels closer than this to the image border are ignored when
+        tracing contours (6 px; 0 keeps them).  Edge detectors respond to the
+        picture's own frame (scan borders, painting frames, padding), and a
+        boxy model such as the mug otherwise matches the whole image.
     frame_prior : float
         Image-relative size prior on the *ranking score* (not on the cost): a
         kept detection whose box covers a share ``r`` of the image area scores
@@ -124,6 +129,7 @@ class DetectParams:
     size_cost: float = 0.5
     min_perimeter: float = 120.0
     full_perimeter: float = 240.0
+    border_margin: float = 6.0
     frame_prior: float = 0.05
 
     def as_dict(self) -> dict[str, Any]:
@@ -344,6 +350,19 @@ def _evidence_costs(
     return out
 
 
+def _without_border(e: NDArray[np.float64], margin: float) -> NDArray[np.float64]:
+    """``e`` with the edge strength within ``margin`` px of the image border set to 0."""
+    b = int(np.ceil(margin))
+    if b <= 0:
+        return e
+    out = e.copy()
+    out[:b] = 0.0
+    out[-b:] = 0.0
+    out[:, :b] = 0.0
+    out[:, -b:] = 0.0
+    return out
+
+
 def _frame_scored(det: Detection, shape: tuple[int, ...], weight: float) -> Detection:
     """``det`` with the image-relative size prior of ``DetectParams.frame_prior`` in its score."""
     x1, y1, x2, y2 = det.bbox
@@ -418,7 +437,7 @@ def detect_detailed(
                 strengths.append(1.0)  # given contours count as full edge evidence
     else:
         traced: list[TracedContour] = trace_contours_detailed(
-            e,
+            _without_border(e, p.border_margin),
             threshold=p.threshold,
             low=p.low,
             min_length=p.min_length,
