@@ -114,7 +114,7 @@ def plot_detection(
     color : str
         Matplotlib colour of this detection.
     label : str or None
-        Text written at the box's corner (default: the cost).
+        Text written at the box's corner (default: the cost; ``""`` writes none).
 
     Returns
     -------
@@ -132,7 +132,9 @@ def plot_detection(
     ax.plot(ip[~det.matched, 0], ip[~det.matched, 1], "x", color=color, ms=4)
     x1, y1, x2, y2 = det.bbox
     ax.plot([x1, x2, x2, x1, x1], [y1, y1, y2, y2, y1], "--", color=color, lw=1)
-    ax.text(x1, y1, label if label is not None else f"{det.cost:.3f}", color=color, fontsize=7)
+    text = label if label is not None else f"{det.cost:.3f}"
+    if text:
+        ax.text(x1, y1, text, color=color, fontsize=7)
     return ax
 
 
@@ -173,8 +175,18 @@ def plot_detection_run(
     elif run.edges.size:
         axs[3].imshow(run.edges, cmap="gray_r")
     colours = ["r", "b", "g", "m", "c"]
-    for i in reversed(range(min(n_show, len(run.detections)))):
-        plot_detection(run.detections[i], run.contours, ax=axs[3], color=colours[i % 5])
+    shown = range(min(n_show, len(run.detections)))
+    for i in reversed(shown):
+        plot_detection(run.detections[i], run.contours, ax=axs[3], color=colours[i % 5], label="")
+    if len(shown):
+        from matplotlib.lines import Line2D
+
+        handles = [Line2D([], [], color=colours[i % 5], lw=2) for i in shown]
+        texts = [
+            f"{i + 1}: score {run.detections[i].score:.3f}, cost {run.detections[i].cost:.3f}"
+            for i in shown
+        ]
+        axs[3].legend(handles, texts, loc="lower left", fontsize=7, framealpha=0.8)
     axs[3].set_title("(d) detections (best in red)")
     for ax in axs:
         if shape is not None:
