@@ -217,3 +217,6 @@ def test_border_margin_ignores_the_picture_frame() -> None:
     assert run.contours == [] and run.detections == []
     kept = detect_detailed(square, None, edges=frame, k=2, border_margin=0.0)
     assert kept.contours  # the frame itself is traced when the margin is off
+    for bad in ({"border_margin": -1.0}, {"frame_prior": float("nan")}):
+        with pytest.raises(ShapeTreeError, match=next(iter(bad))):
+            detect_detailed(square, None, edges=frame, k=2, **bad)

@@ -399,6 +399,10 @@ def detect_detailed(
         p = dataclasses.replace(p, **overrides)
     if k < 1:
         raise ShapeTreeError(f"k must be >= 1, got {k}")
+    for name in ("frame_prior", "border_margin"):
+        v = getattr(p, name)
+        if not (np.isfinite(v) and v >= 0):
+            raise ShapeTreeError(f"{name} must be a finite number >= 0, got {v}")
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     if isinstance(model, DetectionModel):
