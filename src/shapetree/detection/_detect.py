@@ -97,8 +97,9 @@ class DetectParams:
         across images (0.05; 0 ranks by cost alone).  It changes neither the
         stitching nor which detections are kept, only their order.  It encodes
         that photographed objects tend to fill the frame: on ETHZ it lifts the
-        mean DR at 0.4 FPPI from 0.613 to about 0.70 (see the README), and it is
-        off where the image size is unknown (``contours=`` without an image).
+        mean DR at 0.4 FPPI from 0.626 to 0.713 (``benchmarks/ethz_rescore.py``;
+        0.702 when the weight is picked on the other four classes).  It is off
+        where the image size is unknown (``contours=`` without an image).
     """
 
     m: int = 30
