@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from shapetree import ShapeTreeError
-from shapetree.detection import Detection, detect, make_model
+from shapetree.detection import Detection, detect, make_model, outline_dif
 from shapetree.detection._stitch import _dif
 
 
@@ -96,6 +96,8 @@ def test_stitch_finds_broken_shape_with_gaps(seed: int) -> None:
 
 
 def test_complete_shape_without_gaps_and_json() -> None:
+    from shapetree.detection import DetectParams
+
     conts, true_box = _scene(3, removed=[], n_clutter=10)
     dets = detect(make_model(_shape(MODEL_T), m=24), None, contours=conts, k=2)
     best = dets[0]
@@ -103,7 +105,11 @@ def test_complete_shape_without_gaps_and_json() -> None:
     assert best.gaps == [] and best.coverage == pytest.approx(1.0)
     js = best.to_json()
     assert set(js) >= {"score", "bbox", "model_points", "image_points", "gaps", "matched"}
-    assert len(js["image_points"]) == 24 and js["score"] == pytest.approx(-best.cost)
+    assert len(js["image_points"]) == 24
+    # no image: the score is the cost and the outline check (no frame prior)
+    d2 = outline_dif(best.model_points, best.image_points)
+    w = DetectParams().outline_check
+    assert w > 0 and 0 <= d2 < 0.05 and js["score"] == pytest.approx(-best.cost - w * d2)
 
 
 def test_clutter_only_gives_weak_or_no_detections() -> None:
@@ -180,11 +186,11 @@ def test_frame_prior_reorders_by_image_share() -> None:
     conts, true_box = _scene(2, removed=[(1.0, 1.6)], n_clutter=20)
     model = make_model(_shape(MODEL_T), m=24)
     image = np.zeros((320, 420))
-    plain = detect(model, image, contours=conts, k=4, frame_prior=0.0)
+    plain = detect(model, image, contours=conts, k=4, frame_prior=0.0, outline_check=0.0)
     assert [d.score for d in plain] == pytest.approx([-d.cost for d in plain])
     w = DetectParams().frame_prior
     assert w > 0
-    ranked = detect(model, image, contours=conts, k=4)  # default prior, image size known
+    ranked = detect(model, image, contours=conts, k=4, outline_check=0.0)  # image size known
     # the same detections (the prior does not change which are kept) ...
     assert sorted(d.cost for d in ranked) == pytest.approx(sorted(d.cost for d in plain))
     for d in ranked:
@@ -195,8 +201,25 @@ def test_frame_prior_reorders_by_image_share() -> None:
     assert [d.score for d in ranked] == sorted((d.score for d in ranked), reverse=True)
     assert _iou(ranked[0].bbox, true_box) > 0.7
     # without an image the size of the frame is unknown: scores stay -cost
-    none = detect(model, None, contours=conts, k=4)
+    none = detect(model, None, contours=conts, k=4, outline_check=0.0)
     assert [d.score for d in none] == pytest.approx([-d.cost for d in none])
+
+
+def test_outline_dif_and_outline_check() -> None:
+    pts = _shape(np.linspace(0, 2 * np.pi, 30, endpoint=False))
+    moved = _place(pts, 1.1, 37.0, (120.0, -40.0))
+    assert outline_dif(pts, moved) == pytest.approx(0.0, abs=1e-12)  # similarity invariant
+    squashed = moved * np.array([1.0, 0.3])
+    shuffled = moved[np.random.default_rng(0).permutation(30)]
+    assert 0.01 < outline_dif(pts, squashed) < outline_dif(pts, shuffled) <= 1.0
+    assert outline_dif(pts, np.zeros_like(pts)) == 1.0  # a collapsed placement
+    # the check is a ranking term: with only it on, score = -cost - w * d2
+    conts, _ = _scene(2, removed=[(1.0, 1.6)], n_clutter=20)
+    model = make_model(_shape(MODEL_T), m=24)
+    dets = detect(model, None, contours=conts, k=4, outline_check=0.5)
+    for d in dets:
+        assert d.score == pytest.approx(-d.cost - 0.5 * outline_dif(d.model_points, d.image_points))
+    assert [d.score for d in dets] == sorted((d.score for d in dets), reverse=True)
 
 
 def test_border_margin_ignores_the_picture_frame() -> None:
@@ -217,6 +240,6 @@ def test_border_margin_ignores_the_picture_frame() -> None:
     assert run.contours == [] and run.detections == []
     kept = detect_detailed(square, None, edges=frame, k=2, border_margin=0.0)
     assert kept.contours  # the frame itself is traced when the margin is off
-    for bad in ({"border_margin": -1.0}, {"frame_prior": float("nan")}):
+    for bad in ({"border_margin": -1.0}, {"frame_prior": float("nan")}, {"outline_check": -1}):
         with pytest.raises(ShapeTreeError, match=next(iter(bad))):
             detect_detailed(square, None, edges=frame, k=2, **bad)

@@ -13,6 +13,7 @@ from shapetree.detection._detect import (
     DetectParams,
     detect,
     detect_detailed,
+    outline_dif,
 )
 from shapetree.detection._edges import edge_map, load_edges, load_image
 from shapetree.detection._ethz_eval import (
@@ -61,6 +62,7 @@ __all__ = [
     "load_image",
     "load_model",
     "make_model",
+    "outline_dif",
     "outline_from_image",
     "outline_strokes",
     "resample_polyline",
