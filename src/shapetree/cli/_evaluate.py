@@ -350,7 +350,10 @@ def cmd_detect(args: argparse.Namespace) -> int:
         for i, d in enumerate(dets, start=1):
             box = ", ".join(f"{v:.0f}" for v in d.bbox)
             info(f"{i:>4}  {d.score:>9.4f}  {d.cost:>9.4f}  {d.coverage:>8.2f}  ({box})")
-        info("ranked by score = -cost + frame_prior * log(sqrt(box share of the image))")
+        info(
+            "ranked by score = -cost - outline_check * outline_dif"
+            " + frame_prior * log(sqrt(box share of the image))"
+        )
     if args.output:
         info(f"picture: {args.output}")
     if args.json:
