@@ -102,7 +102,7 @@ class DetectParams:
     frame_prior : float
         Image-relative size prior on the *ranking score* (not on the cost): a
         kept detection whose box covers a share ``r`` of the image area scores
-        ``-cost + frame_prior * log(sqrt(r))``, so of two equally cheap matches
+        ``frame_prior * log(sqrt(r))`` more (at most 0), so of two equally good matches
         the one that fills more of the picture ranks first, in its image and
         across images (0.075; 0 turns it off).  It changes neither the
         stitching nor which detections are kept, only their order.  It encodes
