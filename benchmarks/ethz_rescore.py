@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
@@ -39,6 +38,7 @@ from shapetree.detection import (  # noqa: E402
     evaluate_ethz,
     outline_dif,
 )
+from shapetree.detection._detect import frame_term  # noqa: E402
 from shapetree.detection._ethz_eval import ETHZ_CLASSES, _gt_boxes, _images, ethz_root  # noqa: E402
 from shapetree.detection._model import load_model  # noqa: E402
 
@@ -63,11 +63,11 @@ def main() -> None:
     root = ethz_root(args.data)
     cache = Path(res["cache_dir"])
     imgs = _images(root)
-    share = {}
+    hw = {}
     for folder, stem in imgs:
         with Image.open(root / folder / f"{stem}.jpg") as im:
             w, h = im.size
-        share[(folder, stem)] = float(w * h)
+        hw[(folder, stem)] = (h, w)
     model_pts = {
         c: load_model(root / "models" / f"{ETHZ_CLASSES[c][1]}.tif", m=params.m).points
         for c in ETHZ_CLASSES
@@ -81,10 +81,9 @@ def main() -> None:
             gts[cls][key] = _gt_boxes(root, folder, stem, cls)
             doc = json.loads((cache / cls / f"{folder}__{stem}.json").read_text())
             for d in doc["detections"]:
-                x1, y1, x2, y2 = d["bbox"]
-                r = min(max(x2 - x1, 1.0) * max(y2 - y1, 1.0) / share[(folder, stem)], 1.0)
                 d2 = outline_dif(model_pts[cls], d["image_points"])
-                cand[cls].append((key, d["score"], d2, 0.5 * math.log(r), d["bbox"]))
+                lr = frame_term(d["bbox"], hw[(folder, stem)])
+                cand[cls].append((key, d["score"], d2, lr, d["bbox"]))
     table: dict[tuple[float, float], dict[str, float]] = {}
     for c in CHECK:
         for f in FRAME:

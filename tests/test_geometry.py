@@ -79,3 +79,19 @@ def test_triangle_dif_degenerate_triangles():
     t2 = np.array([[2, 2], [2, 5], [2, 2]], float)
     assert triangle_dif(t1, t2) == pytest.approx(0.0, abs=1e-15)
     assert triangle_dif(np.zeros((3, 2)), t2) == 1.0
+
+
+def test_outline_dif_is_the_n_point_triangle_dif() -> None:
+    from shapetree.geometry import outline_dif
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        a, b = rng.normal(size=(3, 2)), rng.normal(size=(3, 2))
+        assert outline_dif(a, b) == pytest.approx(float(triangle_dif(a, b)), abs=1e-12)
+    pts = rng.normal(size=(12, 2))
+    rot = np.array([[0.6, -0.8], [0.8, 0.6]])
+    assert outline_dif(pts, 3.0 * pts @ rot.T + [5.0, -2.0]) == pytest.approx(0.0, abs=1e-12)
+    assert outline_dif(pts, pts[::-1]) > 0.1  # labels matter
+    assert outline_dif(pts, np.ones((12, 2))) == 1.0
+    with pytest.raises(ValueError, match="point sets"):
+        outline_dif(pts, pts[:5])

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from shapetree._errors import ImageError, ShapeTreeError
+from shapetree.geometry import outline_dif
 
 from ._contours import TracedContour, polyline_length, resample_polyline, trace_contours_detailed
 from ._edges import edge_map, load_edges, load_image
@@ -376,20 +377,14 @@ def _without_border(e: NDArray[np.float64], margin: float) -> NDArray[np.float64
     return out
 
 
-def outline_dif(model_points: ArrayLike, image_points: ArrayLike) -> float:
-    """Squared full Procrustes distance between two labelled point sets, in ``[0, 1]``.
+def frame_term(bbox: ArrayLike, shape: tuple[int, ...]) -> float:
+    """``log(sqrt(r))`` for a box covering a share ``r`` of an image of ``shape`` (<= 0).
 
-    ``1 - |<z, w>|^2`` with ``z``, ``w`` the centred, unit-size complex coordinates: 0 when
-    one set is a similarity transform of the other (the ``dif`` of §3 for ``n`` points).
+    The quantity :attr:`DetectParams.frame_prior` weighs.
     """
-    z = np.asarray(model_points, dtype=np.float64) @ np.array([1.0, 1.0j])
-    w = np.asarray(image_points, dtype=np.float64) @ np.array([1.0, 1.0j])
-    z = z - z.mean()
-    w = w - w.mean()
-    nz, nw = np.linalg.norm(z), np.linalg.norm(w)
-    if nz == 0 or nw == 0:
-        return 1.0
-    return float(np.clip(1.0 - abs(np.vdot(z, w)) ** 2 / (nz * nw) ** 2, 0.0, 1.0))
+    x1, y1, x2, y2 = (float(v) for v in bbox)
+    area = max(x2 - x1, 1.0) * max(y2 - y1, 1.0)
+    return 0.5 * float(np.log(min(area / float(shape[0] * shape[1]), 1.0)))
 
 
 def _ranking_score(det: Detection, shape: tuple[int, ...] | None, p: DetectParams) -> Detection:
@@ -398,10 +393,7 @@ def _ranking_score(det: Detection, shape: tuple[int, ...] | None, p: DetectParam
     if p.outline_check:
         score -= p.outline_check * outline_dif(det.model_points, det.image_points)
     if p.frame_prior and shape is not None:
-        x1, y1, x2, y2 = det.bbox
-        area = max(x2 - x1, 1.0) * max(y2 - y1, 1.0)
-        share = min(area / float(shape[0] * shape[1]), 1.0)
-        score += p.frame_prior * 0.5 * float(np.log(share))
+        score += p.frame_prior * frame_term(det.bbox, shape)
     return dataclasses.replace(det, score=score)
 
 

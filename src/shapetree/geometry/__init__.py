@@ -4,8 +4,16 @@ from shapetree.geometry._bookstein import (
     bookstein,
     from_bookstein,
     helmert,
+    outline_dif,
     procrustes_dif,
     triangle_dif,
 )
 
-__all__ = ["bookstein", "from_bookstein", "helmert", "procrustes_dif", "triangle_dif"]
+__all__ = [
+    "bookstein",
+    "from_bookstein",
+    "helmert",
+    "outline_dif",
+    "procrustes_dif",
+    "triangle_dif",
+]

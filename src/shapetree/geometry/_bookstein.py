@@ -128,3 +128,29 @@ def triangle_dif(tri_a: ArrayLike, tri_b: ArrayLike) -> np.ndarray:
     ha, hb = helmert(tri_a), helmert(tri_b)
     ip = np.sum(np.conj(ha) * hb, axis=-1)
     return np.clip(1.0 - np.abs(ip) ** 2, 0.0, 1.0)
+
+
+def outline_dif(points_a: ArrayLike, points_b: ArrayLike) -> float:
+    """Squared full Procrustes distance between two labelled point sets, in ``[0, 1]``.
+
+    The ``n``-point form of :func:`triangle_dif`: ``1 - |<z, w>|^2`` with ``z``, ``w``
+    the centred, unit-size complex coordinates. 0 when one set is a similarity transform
+    of the other; a set whose points all coincide is at distance 1 from everything.
+
+    Parameters
+    ----------
+    points_a, points_b : array_like, shape (n, 2)
+        Corresponding points (row ``i`` of one matches row ``i`` of the other).
+
+    Returns
+    -------
+    float
+    """
+    z, w = _as_complex(points_a), _as_complex(points_b)
+    if z.shape != w.shape or z.ndim != 1:
+        raise ValueError(f"expected two (n, 2) point sets, got shapes {z.shape} and {w.shape}")
+    z, w = z - z.mean(), w - w.mean()
+    nz, nw = np.linalg.norm(z), np.linalg.norm(w)
+    if nz == 0 or nw == 0:
+        return 1.0
+    return float(np.clip(1.0 - abs(np.vdot(z, w)) ** 2 / (nz * nw) ** 2, 0.0, 1.0))
