@@ -3,26 +3,38 @@
 Layout
 ------
 A target subcurve is named by its *length* ``L`` (number of target segments,
-``1 <= L <= m - 1``) and its *start* ``s``; it ends at ``e = s + L`` (mod ``m`` when the
-target is closed, i.e. its subcurves wrap around). Every cost table is stored twice:
+``1 <= L <= m - 1``) and its *start* ``s``; it ends at ``s + L`` (mod ``m`` when the
+target is closed, i.e. its subcurves wrap around). Every table of costs is stored once,
+by start, and *doubled*: ``T[t, L, x]`` for ``x`` in ``[0, 2m)`` holds the cost of table
+``t`` against the subcurve that starts at ``x mod m``. The right child of ``(s, L)`` split
+at ``k`` starts at ``s + k``, so it is read as the contiguous row ``T[right, L - k, k:]``
+without any modulo.
 
-* ``tl[t, L, s]``: by start (a *left* child is read as ``tl[left, k, :]``);
-* ``er[t, L, e2]`` with ``e2`` in ``[0, 2m)``: by end, duplicated at ``e`` and ``e + m`` for
-  closed targets, so the *right* child of ``(s, L)`` split at ``k`` is ``er[right, L-k, s+L]``
-  without any modulo.
+Each table ``t`` (a node of the shape-tree, or one of the model's segments) may only use
+target lengths in its band ``[lmin[t], lmax[t]]`` (the pruned mode; ``1`` and ``m - 1``
+for exact matching). Entries outside a table's band are **never written**: every reader
+(the kernel itself, :func:`closed_root_min`, the traceback) restricts itself to the band.
 
 The loops run ``node -> L -> k -> s`` with ``s`` innermost: the minimum over the split
-``k`` becomes an element-wise minimum over ``s`` that LLVM vectorises (a min-*reduction*
-over ``k`` would not be vectorised from numba).
+``k`` becomes an element-wise minimum over ``s`` that LLVM vectorises.
 
+``dif``
+-------
 ``dif`` is the squared full Procrustes distance between the model triangle
-``(a_start, a_mid, a_end)`` and the target triangle ``(b_s, b_{s+k}, b_{s+L})``, both as
-unit-size Helmert coordinates rotated so the first coordinate is real::
+``(a_start, a_mid, a_end)`` and the target triangle ``(b_s, b_{s+k}, b_{s+L})``. A
+triangle with Helmert coordinates ``h1 = (p3 - p1) / sqrt 2`` and
+``h2 = (2 p2 - p1 - p3) / sqrt 6`` (complex numbers) is stored as
 
-    dif = 1 - (a1 z1 + a2r z2r + a2i z2i)^2 - (a2r z2i - a2i z2r)^2
+    p = |h1|^2 / (|h1|^2 + |h2|^2),      beta = h2 conj(h1) / (|h1|^2 + |h2|^2),
 
-The target's ``z`` (indexed ``[L, k, s]``) are precomputed once per target and shared by
-every model matched against it.
+(the entries of the rank-one projector onto its unit Helmert vector), and then
+
+    dif = 1 - |<z_a, z_b>|^2 = p_a + p_b - 2 p_a p_b - 2 Re(conj(beta_a) beta_b),
+
+which is *linear* in the target's ``(p_b, beta_b)``: per node the inner loop needs three
+multiply-adds, and the constant ``λ p_a`` is added after the minimum over ``k``. A target
+triangle whose three points coincide has no shape; it gets ``p = 1/2, beta = 0``
+(``dif = 1/2`` against every model triangle, the mean over all shapes).
 """
 
 from __future__ import annotations
@@ -39,24 +51,21 @@ def fill_tables(
     left_tab: np.ndarray,
     right_tab: np.ndarray,
     lam: np.ndarray,
-    a1: np.ndarray,
-    a2r: np.ndarray,
-    a2i: np.ndarray,
+    pa: np.ndarray,
+    bar: np.ndarray,
+    bai: np.ndarray,
     flat: np.ndarray,
     alen: np.ndarray,
     seg_lam: np.ndarray,
     seg_alen: np.ndarray,
-    z1: np.ndarray,
-    z2r: np.ndarray,
-    z2i: np.ndarray,
+    tri: np.ndarray,
     g: np.ndarray,
     blen: np.ndarray,
     cyclic: bool,
     occlusion: float,
     lmin: np.ndarray,
     lmax: np.ndarray,
-    tl: np.ndarray,
-    er: np.ndarray,
+    tab: np.ndarray,
 ) -> None:
     """Fill the cost tables of every segment and node of one shape-tree, leaves up.
 
@@ -64,13 +73,14 @@ def fill_tables(
     ----------
     left_tab, right_tab : int64 (K,)
         Table index of each node's children (the model's segments have indices ``K ..``).
-    lam, a1, a2r, a2i, flat, alen : float64 (K,)
-        Per node: λ (weight included), Helmert shape of its triangle, cost against a
-        straight segment (base case), relative arclength (for the replacement cost).
+    lam, pa, bar, bai, flat, alen : float64 (K,)
+        Per node: λ (weight included); its triangle's ``p`` and ``beta`` (real, imaginary;
+        see the module docstring); cost against a straight target segment (base case);
+        relative arclength (for the replacement cost).
     seg_lam, seg_alen : float64 (S,)
         Per model segment: λ and relative arclength.
-    z1, z2r, z2i : float64 (m, m, m)
-        Target triangle shapes ``[L, k, s]``.
+    tri : float64 (m, m, 3, m)
+        Target triangles ``[L, k, (p, beta.real, beta.imag), s]``.
     g : float64 (m, m)
         ``g[L, s]``: base-case cost per unit λ of a straight segment vs subcurve (s, L).
     blen : float64 (m, m)
@@ -80,38 +90,30 @@ def fill_tables(
     occlusion : float
         Replacement cost factor κ (``<= 0`` disables replacement).
     lmin, lmax : int64 (K + S,)
-        Band of target lengths each table may use (pruned mode); ``1`` and ``m - 1``
-        for exact matching. Entries outside the band are ``+inf``.
-    tl : float64 (K + S, m, m)
-        Output, by start.
-    er : float64 (K + S, m, 2 m)
-        Output, by end.
+        Band of target lengths each table may use.
+    tab : float64 (K + S, m, 2 m)
+        Output, doubled by start (module docstring); only in-band rows are written.
     """
     m = g.shape[1]
     n_nodes = lam.shape[0]
     n_seg = seg_lam.shape[0]
     occl = occlusion > 0.0
-    best = np.empty(m)
     for t in range(n_seg + n_nodes):
         is_seg = t < n_seg
         v = t - n_seg  # node index when not a segment
-        tab = n_nodes + t if is_seg else v
+        out = n_nodes + t if is_seg else v
         if is_seg:
             lv = seg_lam[t]
             la = seg_alen[t]
         else:
             lv = lam[v]
             la = alen[v]
-        lo = lmin[tab]
-        hi = lmax[tab]
-        for length in range(1, m):
+        for length in range(lmin[out], lmax[out] + 1):
             ns = m if cyclic else m - length
             if ns <= 0:
                 break
-            if length < lo or length > hi:
-                for s in range(ns):
-                    best[s] = np.inf
-            elif is_seg:
+            best = tab[out, length]
+            if is_seg:
                 grow = g[length]
                 for s in range(ns):
                     best[s] = lv * grow[s]
@@ -120,9 +122,9 @@ def fill_tables(
                 for s in range(ns):
                     best[s] = fl
             else:
-                c1 = a1[v]
-                c2r = a2r[v]
-                c2i = a2i[v]
+                cu = lv * (1.0 - 2.0 * pa[v])
+                cv = -2.0 * lv * bar[v]
+                cw = -2.0 * lv * bai[v]
                 lt = left_tab[v]
                 rt = right_tab[v]
                 for s in range(ns):
@@ -131,57 +133,51 @@ def fill_tables(
                 k0 = max(1, lmin[lt], length - lmax[rt])
                 k1 = min(length - 1, lmax[lt], length - lmin[rt])
                 for k in range(k0, k1 + 1):
-                    lrow = tl[lt, k]
-                    rrow = er[rt, length - k, length:]
-                    zz1 = z1[length, k]
-                    zzr = z2r[length, k]
-                    zzi = z2i[length, k]
+                    lrow = tab[lt, k]
+                    rrow = tab[rt, length - k, k : k + ns]
+                    tp = tri[length, k, 0]
+                    tr = tri[length, k, 1]
+                    ti = tri[length, k, 2]
                     for s in range(ns):
-                        ip_re = c1 * zz1[s] + c2r * zzr[s] + c2i * zzi[s]
-                        ip_im = c2r * zzi[s] - c2i * zzr[s]
-                        c = lrow[s] + rrow[s] + lv * (1.0 - ip_re * ip_re - ip_im * ip_im)
+                        c = lrow[s] + rrow[s] + cu * tp[s] + cv * tr[s] + cw * ti[s]
                         b = best[s]
                         best[s] = c if c < b else b
-            if occl and lo <= length <= hi:
+                const = lv * pa[v]
+                for s in range(ns):
+                    best[s] += const
+            if occl:
                 brow = blen[length]
                 for s in range(ns):
                     r = occlusion * lv * (la + brow[s])
                     if r < best[s]:
                         best[s] = r
-            for s in range(ns):
-                tl[tab, length, s] = best[s]
             if cyclic:
-                for s in range(ns):
-                    e = s + length
-                    if e >= m:
-                        e -= m
-                    er[tab, length, e] = best[s]
-                    er[tab, length, e + m] = best[s]
-            else:
-                for s in range(ns):
-                    er[tab, length, s + length] = best[s]
+                for s in range(m):
+                    best[m + s] = best[s]
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def closed_root_min(t1: np.ndarray, er2: np.ndarray) -> tuple[float, int, int]:
+def closed_root_min(
+    t1: np.ndarray, t2: np.ndarray, lo1: int, hi1: int, lo2: int, hi2: int
+) -> tuple[float, int, int]:
     """Best cyclic alignment of a closed model, ``min_{s, L} T1[L, s] + T2[m - L, s + L]``.
 
-    ``t1`` is the first half's by-start table, ``er2`` the second half's by-end table (the
-    second half starts at ``s + L`` and ends at ``s``).
+    ``t1``, ``t2`` are the two halves' doubled tables (the second half starts at ``s + L``
+    and ends at ``s``); ``[lo, hi]`` are their bands.
 
     Returns
     -------
     cost, s, L
     """
-    m = t1.shape[1]
+    m = t1.shape[0]
     best = np.inf
     bs = 0
     bl = 1
-    for length in range(1, m):
+    for length in range(max(1, lo1, m - hi2), min(m - 1, hi1, m - lo2) + 1):
         row1 = t1[length]
-        row2 = er2[m - length]
+        row2 = t2[m - length]
         for s in range(m):
-            c = row1[s] + row2[s]
+            c = row1[s] + row2[s + length]
             if c < best:
                 best = c
                 bs = s
@@ -189,10 +185,68 @@ def closed_root_min(t1: np.ndarray, er2: np.ndarray) -> tuple[float, int, int]:
     return best, bs, bl
 
 
+@njit(cache=True, fastmath=True, nogil=True)
+def closed_costs(
+    left_tab: np.ndarray,
+    right_tab: np.ndarray,
+    lam: np.ndarray,
+    pa: np.ndarray,
+    bar: np.ndarray,
+    bai: np.ndarray,
+    flat: np.ndarray,
+    alen: np.ndarray,
+    seg_lam: np.ndarray,
+    seg_alen: np.ndarray,
+    lmin: np.ndarray,
+    lmax: np.ndarray,
+    root1: np.ndarray,
+    root2: np.ndarray,
+    tri: np.ndarray,
+    g: np.ndarray,
+    blen: np.ndarray,
+    occlusion: float,
+    tab: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """ψ of many closed shape-trees against one closed target, in one call.
+
+    The per-tree arguments of :func:`fill_tables` are stacked along a first axis of
+    length ``R`` (one row per shape-tree; all trees have the same numbers of nodes and
+    segments), ``root1``/``root2`` (``R``,) are the table indices of each tree's two
+    roots, ``tab`` is one tree's workspace and ``out`` (``R``,) receives the costs.
+    """
+    for r in range(lam.shape[0]):
+        fill_tables(
+            left_tab[r],
+            right_tab[r],
+            lam[r],
+            pa[r],
+            bar[r],
+            bai[r],
+            flat[r],
+            alen[r],
+            seg_lam[r],
+            seg_alen[r],
+            tri,
+            g,
+            blen,
+            True,
+            occlusion,
+            lmin[r],
+            lmax[r],
+            tab,
+        )
+        a = root1[r]
+        b = root2[r]
+        out[r] = closed_root_min(tab[a], tab[b], lmin[r, a], lmax[r, a], lmin[r, b], lmax[r, b])[
+            0
+        ]
+
+
 @njit(cache=True, fastmath=False, nogil=True)
 def target_tables(
     bx: np.ndarray, by: np.ndarray, cyclic: bool, power: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-target precomputation: triangle shapes, base-case costs and subcurve lengths.
 
     Parameters
@@ -205,14 +259,12 @@ def target_tables(
 
     Returns
     -------
-    z1, z2r, z2i : (m, m, m) ``[L, k, s]``
+    tri : (m, m, 3, m) ``[L, k, (p, beta.real, beta.imag), s]``
     g : (m, m) ``[L, s]``
     blen : (m, m) ``[L, s]``
     """
     m = bx.shape[0]
-    z1 = np.zeros((m, m, m))
-    z2r = np.zeros((m, m, m))
-    z2i = np.zeros((m, m, m))
+    tri = np.empty((m, m, 3, m))
     g = np.zeros((m, m))
     blen = np.zeros((m, m))
     h = np.zeros((m, m))
@@ -229,49 +281,51 @@ def target_tables(
                 break
             acc += seg[(s + length - 1) % m]
             blen[length, s] = acc / total
+    # doubled coordinates: index s + k < 2m needs no modulo
+    x2 = np.concatenate((bx, bx))
+    y2 = np.concatenate((by, by))
+    h1r = np.empty(m)
+    h1i = np.empty(m)
+    n1 = np.empty(m)
     for length in range(2, m):
-        for s in range(m):
-            if not cyclic and s + length > m - 1:
-                break
-            e = (s + length) % m
-            h1r = (bx[e] - bx[s]) / _SQRT2
-            h1i = (by[e] - by[s]) / _SQRT2
-            a = np.hypot(h1r, h1i)
-            if a > 0:
-                rr = h1r / a
-                ri = -h1i / a
-            else:
-                rr = 1.0
-                ri = 0.0
-            for k in range(1, length):
-                j = (s + k) % m
-                h2r = (2.0 * bx[j] - bx[s] - bx[e]) / _SQRT6
-                h2i = (2.0 * by[j] - by[s] - by[e]) / _SQRT6
-                # rotate by conj(h1)/|h1| so that h1 becomes real
-                q2r = h2r * rr - h2i * ri
-                q2i = h2r * ri + h2i * rr
-                norm = np.sqrt(a * a + q2r * q2r + q2i * q2i)
-                if norm > 0:
-                    z1[length, k, s] = a / norm
-                    z2r[length, k, s] = q2r / norm
-                    z2i[length, k, s] = q2i / norm
+        ns = m if cyclic else m - length
+        for s in range(ns):
+            h1r[s] = (x2[s + length] - x2[s]) / _SQRT2
+            h1i[s] = (y2[s + length] - y2[s]) / _SQRT2
+            n1[s] = h1r[s] * h1r[s] + h1i[s] * h1i[s]
+        for k in range(1, length):
+            tp = tri[length, k, 0]
+            tr = tri[length, k, 1]
+            ti = tri[length, k, 2]
+            for s in range(ns):
+                h2r = (2.0 * x2[s + k] - x2[s] - x2[s + length]) / _SQRT6
+                h2i = (2.0 * y2[s + k] - y2[s] - y2[s + length]) / _SQRT6
+                den = n1[s] + h2r * h2r + h2i * h2i
+                if den > 0:
+                    inv = 1.0 / den
+                    tp[s] = n1[s] * inv
+                    tr[s] = (h2r * h1r[s] + h2i * h1i[s]) * inv
+                    ti[s] = (h2i * h1r[s] - h2r * h1i[s]) * inv
+                else:
+                    tp[s] = 0.5
+                    tr[s] = 0.0
+                    ti[s] = 0.0
     # base case: a straight segment subdivided to L + 1 points matched point for point
     # to B[s..s+L] over the half-split tree; h = sum of (node length in segments) * dif
     for length in range(2, m):
         kk = length // 2
-        w = kk / length - 0.5
-        c1 = 1.0 / _SQRT2
-        c2 = 2.0 * w / _SQRT6
-        nrm = np.sqrt(c1 * c1 + c2 * c2)
-        c1 /= nrm
-        c2 /= nrm
+        w = kk / length - 0.5  # Bookstein coordinate of the subdivided segment's midpoint
+        h1 = 1.0 / _SQRT2
+        h2 = 2.0 * w / _SQRT6
+        den = h1 * h1 + h2 * h2
+        p_a = h1 * h1 / den
+        b_a = h2 * h1 / den
         for s in range(m):
             if not cyclic and s + length > m - 1:
                 break
-            ip_re = c1 * z1[length, kk, s] + c2 * z2r[length, kk, s]
-            ip_im = c2 * z2i[length, kk, s]
-            dif = max(1.0 - ip_re * ip_re - ip_im * ip_im, 0.0)
+            p_b = tri[length, kk, 0, s]
+            dif = max(p_a + p_b - 2.0 * p_a * p_b - 2.0 * b_a * tri[length, kk, 1, s], 0.0)
             right = (s + kk) % m
             h[length, s] = h[kk, s] + h[length - kk, right] + length**power * dif
             g[length, s] = h[length, s] / length**power
-    return z1, z2r, z2i, g, blen
+    return tri, g, blen

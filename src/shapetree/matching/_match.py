@@ -100,13 +100,13 @@ class MatchResult:
 _workspace = threading.local()
 
 
-def _buffers(n_tables: int, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """This thread's reusable table buffers (fresh memory costs page faults on every call)."""
-    bufs = getattr(_workspace, "bufs", None)
-    if bufs is None or bufs[0].shape[0] < n_tables or bufs[0].shape[1] != m:
-        bufs = (np.empty((n_tables, m, m)), np.empty((n_tables, m, 2 * m)))
-        _workspace.bufs = bufs
-    return bufs[0][:n_tables], bufs[1][:n_tables]
+def _buffers(n_tables: int, m: int) -> np.ndarray:
+    """This thread's reusable table buffer (fresh memory costs page faults on every call)."""
+    buf = getattr(_workspace, "buf", None)
+    if buf is None or buf.shape[0] < n_tables or buf.shape[1] != m:
+        buf = np.empty((n_tables, m, 2 * m))
+        _workspace.buf = buf
+    return buf[:n_tables]
 
 
 def _bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray, np.ndarray]:
@@ -130,53 +130,46 @@ def _compute_bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray
     return lmin, lmax
 
 
-def _fill(
-    td: TreeData, target: Target, params: MatchParams, *, reuse: bool = False
-) -> tuple[np.ndarray, np.ndarray]:
-    """Fill the tables of one tree; ``reuse`` writes into this thread's workspace (the
-    result is then only valid until the next reusing call)."""
+def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = False) -> np.ndarray:
+    """Fill the tables of one tree (doubled, by start; see :mod:`._kernels`); ``reuse``
+    writes into this thread's workspace (the result is then only valid until the next
+    reusing call). Only the rows inside each table's band are written."""
     m = target.n_points
     lmin, lmax = _bands(td, m, params.band)
-    if reuse:
-        s_tab, er_tab = _buffers(td.n_tables, m)
-    else:
-        s_tab = np.empty((td.n_tables, m, m))
-        er_tab = np.empty((td.n_tables, m, 2 * m))
+    tab = _buffers(td.n_tables, m) if reuse else np.empty((td.n_tables, m, 2 * m))
     fill_tables(
         td.left_tab,
         td.right_tab,
         td.lam,
-        td.a1,
-        td.a2r,
-        td.a2i,
+        td.pa,
+        td.bar,
+        td.bai,
         td.flat,
         td.alen,
         td.seg_lam,
         td.seg_alen,
-        target.z1,
-        target.z2r,
-        target.z2i,
+        target.tri,
         target.g,
         target.blen,
         target.closed,
         params.kernel_occlusion,
         lmin,
         lmax,
-        s_tab,
-        er_tab,
+        tab,
     )
-    return s_tab, er_tab
+    return tab
 
 
 def _root_cost(
-    td: TreeData, s_tab: np.ndarray, er_tab: np.ndarray, closed: bool
+    td: TreeData, tab: np.ndarray, closed: bool, band: float | None
 ) -> tuple[float, int, int]:
-    m = s_tab.shape[1]
+    m = tab.shape[1]
     if closed:
+        lmin, lmax = _bands(td, m, band)
         r1 = td.table_of_root(td.tree.roots[0], 0)
         r2 = td.table_of_root(td.tree.roots[1], 1)
-        return closed_root_min(s_tab[r1], er_tab[r2])
-    return float(s_tab[td.tree.roots[0], m - 1, 0]), 0, m - 1
+        return closed_root_min(tab[r1], tab[r2], lmin[r1], lmax[r1], lmin[r2], lmax[r2])
+    return float(tab[td.tree.roots[0], m - 1, 0]), 0, m - 1
 
 
 class _Traceback:
@@ -187,12 +180,12 @@ class _Traceback:
         td: TreeData,
         target: Target,
         params: MatchParams,
-        s_tab: np.ndarray,
-        er_tab: np.ndarray,
+        tab: np.ndarray,
     ) -> None:
         self.td, self.t, self.p = td, target, params
-        self.s_tab, self.er_tab = s_tab, er_tab
+        self.tab = tab
         self.m = target.n_points
+        self.lmin, self.lmax = _bands(td, self.m, params.band)
         n_u = td.tree.unrolled.shape[0]
         self.pos_a = np.full(n_u, np.nan)  # B position of each unrolled A point
         self.pos_b = np.full(2 * self.m + 1, np.nan)  # A position of each unrolled B point
@@ -231,20 +224,24 @@ class _Traceback:
         if length == 1:
             best, k = td.flat[v], -1
         else:
-            ks = np.arange(1, length)
+            lt, rt = int(td.left_tab[v]), int(td.right_tab[v])
+            lmin, lmax = self.lmin, self.lmax
+            # the splits the kernel considered (both halves inside their children's bands)
+            k0 = max(1, lmin[lt], length - lmax[rt])
+            k1 = min(length - 1, lmax[lt], length - lmin[rt])
+            ks = np.arange(k0, k1 + 1)
             ss = s % m
-            left = self.s_tab[td.left_tab[v], ks, ss]
-            right = self.er_tab[td.right_tab[v], length - ks, ss + length]
-            z1, z2r, z2i = (
-                self.t.z1[length, ks, ss],
-                self.t.z2r[length, ks, ss],
-                self.t.z2i[length, ks, ss],
-            )
-            ip_re = td.a1[v] * z1 + td.a2r[v] * z2r + td.a2i[v] * z2i
-            ip_im = td.a2r[v] * z2i - td.a2i[v] * z2r
-            tot = left + right + td.lam[v] * (1.0 - ip_re**2 - ip_im**2)
-            i = int(np.argmin(tot))
-            best, k = float(tot[i]), int(ks[i])
+            left = self.tab[lt, ks, ss]
+            right = self.tab[rt, length - ks, ss + ks]
+            tri = self.t.tri[length, ks, :, ss]
+            pa, br, bi = td.pa[v], td.bar[v], td.bai[v]
+            dif = pa + tri[:, 0] * (1.0 - 2.0 * pa) - 2.0 * (br * tri[:, 1] + bi * tri[:, 2])
+            tot = left + right + td.lam[v] * dif
+            if tot.size == 0:  # no admissible split: only a replacement can cover (s, L)
+                best, k = np.inf, -1
+            else:
+                i = int(np.argmin(tot))
+                best, k = float(tot[i]), int(ks[i])
         if self._replace_cost(td.lam[v], td.alen[v], s, length) < best:
             self.replaced.append((sa, ea, s, s + length))
             self.pos_a[sa + 1 : ea] = np.nan
@@ -263,13 +260,12 @@ def _traceback(
     td: TreeData,
     target: Target,
     params: MatchParams,
-    s_tab: np.ndarray,
-    er_tab: np.ndarray,
+    tab: np.ndarray,
     s0: int,
     l1: int,
     n_a: int,
 ) -> tuple:
-    tb = _Traceback(td, target, params, s_tab, er_tab)
+    tb = _Traceback(td, target, params, tab)
     tree = td.tree
     m = target.n_points
     if tree.closed:
@@ -333,22 +329,22 @@ def match_prepared(
     costs = np.empty(len(model.trees))
     best = None
     for t, td in enumerate(model.trees):
-        s_tab, er_tab = _fill(td, target, params)
-        c, s0, l1 = _root_cost(td, s_tab, er_tab, model.closed)
+        tab = _fill(td, target, params)
+        c, s0, l1 = _root_cost(td, tab, model.closed, params.band)
         costs[t] = c
         if best is None or c < best[0]:
-            best = (c, t, s_tab, er_tab, s0, l1)
+            best = (c, t, tab, s0, l1)
     assert best is not None
-    cost, t, s_tab, er_tab, s0, l1 = best
+    cost, t, tab, s0, l1 = best
     n, m = model.points.shape[0], target.n_points
     if correspondence:
         a_to_b, b_to_a, replaced = _traceback(
-            model.trees[t], target, params, s_tab, er_tab, s0, l1, n
+            model.trees[t], target, params, tab, s0, l1, n
         )
     else:
         a_to_b, b_to_a, replaced = np.full(n, np.nan), np.full(m, np.nan), []
     return MatchResult(
-        cost=float(cost),
+        cost=max(float(cost), 0.0),
         a=model.points,
         b=target.points,
         closed=model.closed,
@@ -379,9 +375,9 @@ def match_cost(model: Model, target: Target, params: MatchParams | None = None) 
     _check_pair(model, target)
     best = np.inf
     for td in model.trees:
-        s_tab, er_tab = _fill(td, target, params, reuse=True)
-        best = min(best, _root_cost(td, s_tab, er_tab, model.closed)[0])
-    return float(best)
+        tab = _fill(td, target, params, reuse=True)
+        best = min(best, _root_cost(td, tab, model.closed, params.band)[0])
+    return max(float(best), 0.0)  # a sum of difs >= 0; round-off can leave -1e-17
 
 
 def match(
@@ -483,8 +479,8 @@ def subcurve_table(
     if tree.closed:
         raise ShapeTreeError("subcurve_table needs an open contour")
     td = tree_data(tree, weight=weight, length_scale=length_scale, power=target.length_power)
-    s_tab, _ = _fill(td, target, MatchParams(occlusion=occlusion), reuse=True)
-    out = s_tab[tree.roots[0]].T.copy()
+    tab = _fill(td, target, MatchParams(occlusion=occlusion), reuse=True)
+    out = tab[tree.roots[0], :, : target.n_points].T.copy()
     out[:, 0] = np.inf
     return out
 

@@ -37,9 +37,11 @@ class Target:
     points : ndarray, shape (m, 2)
     closed : bool
         Closed targets have cyclic subcurves.
-    z1, z2r, z2i : ndarray, shape (m, m, m)
-        Unit-size Helmert coordinates of the triangles ``(b_s, b_{s+k}, b_{s+L})``,
-        indexed ``[L, k, s]`` and rotated so that the first coordinate is real.
+    tri : ndarray, shape (m, m, 3, m)
+        The triangles ``(b_s, b_{s+k}, b_{s+L})``, indexed ``[L, k, c, s]``: ``c = 0`` is
+        ``p = |h1|^2 / (|h1|^2 + |h2|^2)`` and ``c = 1, 2`` are the real and imaginary
+        parts of ``beta = h2 conj(h1) / (|h1|^2 + |h2|^2)`` for the Helmert coordinates
+        ``h1, h2`` (see :mod:`shapetree.matching._kernels`).
     g : ndarray, shape (m, m)
         ``g[L, s]``: base-case cost per unit λ of a straight segment subdivided into
         ``L + 1`` points and matched point for point to ``B[s..s+L]``.
@@ -51,9 +53,7 @@ class Target:
 
     points: np.ndarray
     closed: bool
-    z1: np.ndarray
-    z2r: np.ndarray
-    z2i: np.ndarray
+    tri: np.ndarray
     g: np.ndarray
     blen: np.ndarray
     length_power: float = 1.0
@@ -82,15 +82,13 @@ def prepare_target(points: ArrayLike, *, closed: bool = True, length_power: floa
     b = as_curve(points, closed=closed, name="target curve")
     if not (np.isfinite(length_power) and length_power >= 0):
         raise ShapeTreeError(f"length_power must be a number >= 0, got {length_power}")
-    z1, z2r, z2i, g, blen = target_tables(
+    tri, g, blen = target_tables(
         np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]), closed, float(length_power)
     )
     return Target(
         points=b,
         closed=closed,
-        z1=z1,
-        z2r=z2r,
-        z2i=z2i,
+        tri=tri,
         g=g,
         blen=blen,
         length_power=float(length_power),
@@ -105,9 +103,9 @@ class TreeData:
     left_tab: np.ndarray
     right_tab: np.ndarray
     lam: np.ndarray
-    a1: np.ndarray
-    a2r: np.ndarray
-    a2i: np.ndarray
+    pa: np.ndarray
+    bar: np.ndarray
+    bai: np.ndarray
     flat: np.ndarray
     alen: np.ndarray
     seg_start: np.ndarray
@@ -166,9 +164,9 @@ def tree_data(
         left_tab=left_tab.astype(np.int64),
         right_tab=right_tab.astype(np.int64),
         lam=np.ascontiguousarray(lam),
-        a1=np.ascontiguousarray(a1),
-        a2r=np.ascontiguousarray(a2.real),
-        a2i=np.ascontiguousarray(a2.imag),
+        pa=np.ascontiguousarray(a1**2),
+        bar=np.ascontiguousarray(a1 * a2.real),
+        bai=np.ascontiguousarray(a1 * a2.imag),
         flat=flat,
         alen=alen,
         seg_start=seg_start,

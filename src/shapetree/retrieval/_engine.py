@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike
 from shapetree._errors import ShapeTreeError
 from shapetree.curves import as_curve, resample, smooth
 from shapetree.matching import MatchParams, match_cost, prepare_model, prepare_target
+from shapetree.matching._batch import ModelStack
 
 __all__ = [
     "ENGINE_VERSION",
@@ -41,7 +42,7 @@ __all__ = [
 ]
 
 #: Bump when the meaning of a cached block changes (kernel, cost definition, layout).
-ENGINE_VERSION = 1
+ENGINE_VERSION = 2
 _MAGIC = b"SHAPETREE-DMBLOCK\n"
 _HDR = struct.Struct("<Q")
 
@@ -249,11 +250,18 @@ def _compute_block(
     if p.mirror:
         passes.append([prepare_model(mirror_curve(a), **kw) for a in models])
     out = np.empty((len(passes), len(models), len(targets)))
+    flat = [mod for ms in passes for mod in ms]
+    sizes = {a.shape[0] for a in models} | {b.shape[0] for b in targets}
+    # equal sizes (the usual case, n_points set): one kernel call per target for the block
+    stack = ModelStack(flat, targets[0].shape[0], mp) if len(sizes) == 1 else None
     for j, b in enumerate(targets):
         t = prepare_target(b, closed=True, length_power=p.length_power)
-        for k, ms in enumerate(passes):
-            for i, m in enumerate(ms):
-                out[k, i, j] = match_cost(m, t, mp)
+        if stack is not None:
+            out[:, :, j] = stack.costs(t).reshape(len(passes), len(models))
+        else:
+            for k, ms in enumerate(passes):
+                for i, m in enumerate(ms):
+                    out[k, i, j] = match_cost(m, t, mp)
         if tick is not None:
             tick(len(models))
     return out
