@@ -42,9 +42,7 @@ class ModelStack:
     fills the same tables, only the Python loop around it is gone.
     """
 
-    def __init__(
-        self, models: Sequence[Model], m: int, params: MatchParams | None = None
-    ) -> None:
+    def __init__(self, models: Sequence[Model], m: int, params: MatchParams | None = None) -> None:
         self.params = params or MatchParams()
         models = list(models)
         if not models:
@@ -104,8 +102,7 @@ class ModelStack:
         _check_pair(self.models[0], target)
         if target.n_points != self.m:
             raise ShapeTreeError(
-                f"this ModelStack was built for targets of {self.m} points, "
-                f"got {target.n_points}"
+                f"this ModelStack was built for targets of {self.m} points, got {target.n_points}"
             )
         tab = getattr(_workspace, "tab", None)
         if tab is None or tab.shape[0] < self._n_tables or tab.shape[1] != self.m:

@@ -238,9 +238,7 @@ def closed_costs(
         )
         a = root1[r]
         b = root2[r]
-        out[r] = closed_root_min(tab[a], tab[b], lmin[r, a], lmax[r, a], lmin[r, b], lmax[r, b])[
-            0
-        ]
+        out[r] = closed_root_min(tab[a], tab[b], lmin[r, a], lmax[r, a], lmin[r, b], lmax[r, b])[0]
 
 
 @njit(cache=True, fastmath=False, nogil=True)

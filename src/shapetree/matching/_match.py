@@ -338,9 +338,7 @@ def match_prepared(
     cost, t, tab, s0, l1 = best
     n, m = model.points.shape[0], target.n_points
     if correspondence:
-        a_to_b, b_to_a, replaced = _traceback(
-            model.trees[t], target, params, tab, s0, l1, n
-        )
+        a_to_b, b_to_a, replaced = _traceback(model.trees[t], target, params, tab, s0, l1, n)
     else:
         a_to_b, b_to_a, replaced = np.full(n, np.nan), np.full(m, np.nan), []
     return MatchResult(
