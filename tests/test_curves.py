@@ -349,3 +349,16 @@ def test_smooth_open_keeps_ends_and_zero_is_identity():
 def test_smooth_bad_sigma(sigma):
     with pytest.raises(CurveError, match="sigma"):
         smooth(circle(20), sigma, closed=True)
+
+
+def test_resample_phase_interleaves_samplings():
+    """Phase p/P starts p/P of a spacing later: P phases interleave into the P*n sampling."""
+    rng = np.random.default_rng(4)
+    poly = circle(9, r=3.0) + rng.normal(scale=0.2, size=(9, 2))
+    fine = resample(poly, 24, closed=True)
+    for p in range(3):
+        np.testing.assert_allclose(resample(poly, 8, closed=True, phase=p / 3), fine[p::3])
+    with pytest.raises(CurveError, match="phase must be in"):
+        resample(poly, 8, closed=True, phase=1.0)
+    with pytest.raises(CurveError, match="closed curves only"):
+        resample(poly, 8, closed=False, phase=0.5)

@@ -70,6 +70,42 @@ def test_kernel_equals_reference_with_length_power(power):
         match_cost(prepare_model(a, length_power=power), prepare_target(b))
 
 
+@pytest.mark.parametrize("segment_weight", [0.0, 0.4])
+def test_kernel_equals_reference_with_segment_weight_and_dense_target(segment_weight):
+    """The base case "segment vs target subcurve" scaled by segment_weight (0: free), with
+    targets sampled up to twice as densely as the model."""
+    rng = np.random.default_rng(int(segment_weight * 10) + 3)
+    for closed in (False, True):
+        for occlusion in (None, 0.6):
+            n = int(rng.integers(4, 8))
+            a, b = blob(n, rng, closed=closed), blob(2 * n, rng, closed=closed)
+            tree = build_shape_tree(a, closed=closed)
+            ref = reference_match_cost(tree, b, occlusion=occlusion, segment_weight=segment_weight)
+            fast = match_prepared(
+                prepare_model(a, closed=closed),
+                prepare_target(b, closed=closed),
+                MatchParams(occlusion=occlusion, segment_weight=segment_weight),
+            ).cost
+            assert fast == pytest.approx(ref, rel=1e-9, abs=1e-12)
+            full = reference_match_cost(tree, b, occlusion=occlusion)
+            assert ref <= full + 1e-12  # a cheaper base case never raises the cost
+
+
+def test_free_segments_let_a_dense_target_absorb_its_extra_points():
+    """A model matched to a target that holds the model's own points plus extra ones in
+    between costs exactly 0 when segment detail is free, and more with the paper's rule."""
+    t = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    star = np.c_[np.cos(t), np.sin(t)] * (1 + 0.3 * np.cos(5 * t))[:, None]
+    model = star[::2]  # 12 points; the target has a bumpy point between each pair
+    mp0 = MatchParams(segment_weight=0.0)
+    assert match_cost(prepare_model(model), prepare_target(star), mp0) == pytest.approx(
+        0.0, abs=1e-12
+    )
+    assert match_cost(prepare_model(model), prepare_target(star)) > 1e-3
+    res = match(model, star, segment_weight=0.0)
+    np.testing.assert_allclose(np.diff(res.a_to_b) % 24, 2.0)  # every other target point
+
+
 def test_subcurve_table_equals_reference():
     rng = np.random.default_rng(11)
     for occlusion in (None, 0.5):

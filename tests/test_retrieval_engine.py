@@ -146,7 +146,7 @@ _CHILD = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     from test_retrieval_engine import _shapes
     from shapetree.retrieval import distance_matrix
-    d = distance_matrix(_shapes(24, seed=5), n_points=36, mirror=True, block=1, workers=2,
+    d = distance_matrix(_shapes(40, seed=5), n_points=36, mirror=True, block=1, workers=2,
                         cache_dir={cache!r}, progress=False)
     np.save({out!r}, d)
     """
@@ -173,13 +173,13 @@ def test_sigkill_midway_then_resume(tmp_path: Path) -> None:
             proc.kill()
     assert proc.returncode == -signal.SIGKILL
     n_after = len(list(cache.glob("*/*.blk")))
-    assert 3 <= n_after < 24
+    assert 3 <= n_after < 40
     assert not out.exists()
     kw = dict(n_points=36, mirror=True, block=1, progress=False)
-    resumed = distance_matrix(_shapes(24, seed=5), cache_dir=cache, workers=2, **kw)
-    fresh = distance_matrix(_shapes(24, seed=5), workers=1, **kw)
+    resumed = distance_matrix(_shapes(40, seed=5), cache_dir=cache, workers=2, **kw)
+    fresh = distance_matrix(_shapes(40, seed=5), workers=1, **kw)
     assert np.array_equal(resumed, fresh)
-    assert len(list(cache.glob("*/*.blk"))) == 24
+    assert len(list(cache.glob("*/*.blk"))) == 40
 
 
 def test_length_power_reaches_the_matcher():
@@ -214,3 +214,45 @@ def test_smooth_reaches_the_matcher_and_the_cache_key(tmp_path: Path):
     assert len([p for p in tmp_path.iterdir() if p.is_dir()]) == 2  # two cache keys
     with pytest.raises(ShapeTreeError, match="smooth"):
         distance_matrix(curves, smooth=0.7, **kw)
+
+
+def test_phases_and_dense_targets_reach_the_matcher():
+    """phases = min over target resamplings at p/P of a spacing; target_factor and
+    segment_weight change the target's size and the base case: each entry equals the
+    matching computed directly."""
+    curves = _shapes(4, seed=7)
+    n = 16
+    kw = dict(n_points=n, symmetrize=None, workers=1, progress=False)
+    D = distance_matrix(curves, phases=3, **kw)
+    E = distance_matrix(curves, target_factor=2, segment_weight=0.0, **kw)
+    for i, j in [(0, 1), (2, 3), (3, 0)]:
+        model = prepare_model(resample(curves[i], n, closed=True))
+        want = min(
+            match_cost(model, prepare_target(resample(curves[j], n, closed=True, phase=p / 3)))
+            for p in range(3)
+        )
+        assert D[i, j] == pytest.approx(want, rel=1e-12, abs=1e-15)
+        dense = prepare_target(resample(curves[j], 2 * n, closed=True))
+        want = match_cost(model, dense, MatchParams(segment_weight=0.0))
+        assert E[i, j] == pytest.approx(want, rel=1e-12, abs=1e-15)
+    plain = distance_matrix(curves, **kw)
+    off = ~np.eye(4, dtype=bool)
+    assert np.all(D[off] <= plain[off] + 1e-15)  # phase 0 is among the phases tried
+    assert not np.allclose(E, plain)
+
+
+@pytest.mark.parametrize(
+    "bad, words",
+    [
+        (dict(phases=0), "phases must be an integer >= 1"),
+        (dict(phases=2.5), "phases must be an integer >= 1"),
+        (dict(target_factor=0), "target_factor must be an integer >= 1"),
+        (dict(segment_weight=-1.0), "segment_weight must be a number >= 0"),
+        (dict(phases=2, n_points=None), "needs n_points"),
+        (dict(target_factor=2, n_points=None), "needs n_points"),
+    ],
+)
+def test_bad_sampling_options_are_named(bad, words):
+    kw = dict(dict(n_points=12, workers=1, progress=False), **bad)
+    with pytest.raises(ShapeTreeError, match=words):
+        distance_matrix(_shapes(3, seed=1), **kw)

@@ -13,7 +13,7 @@ from shapetree.curves._validate import as_curve
 __all__ = ["point_at", "resample", "smooth"]
 
 
-def resample(points: ArrayLike, n: int, *, closed: bool) -> np.ndarray:
+def resample(points: ArrayLike, n: int, *, closed: bool, phase: float = 0.0) -> np.ndarray:
     """Resample a polygonal curve to ``n`` points equally spaced in arc length.
 
     Parameters
@@ -27,6 +27,11 @@ def resample(points: ArrayLike, n: int, *, closed: bool) -> np.ndarray:
         equal (``length / (n - 1)``). Closed curve: the output starts at the first point and the
         ``n`` points split the whole perimeter, including the closing segment, into ``n`` equal
         arcs (``length / n``); the first point is not repeated at the end.
+    phase : float, optional
+        Closed curves only: start ``phase`` sample spacings (``phase * length / n``) after
+        the first point instead of at it, ``0 <= phase < 1``. Resampling with phases
+        ``p / P`` gives ``P`` interleaved samplings of the same curve (the retrieval
+        engine's ``phases`` option).
 
     Returns
     -------
@@ -41,18 +46,28 @@ def resample(points: ArrayLike, n: int, *, closed: bool) -> np.ndarray:
     if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 3:
         raise CurveError(f"resample: n must be an integer >= 3, got {n!r}")
     n = int(n)
+    if isinstance(phase, bool) or not isinstance(phase, numbers.Real):
+        raise CurveError(f"resample: phase must be a number, got {phase!r}")
+    phase = float(phase)
+    if not 0.0 <= phase < 1.0:
+        raise CurveError(f"resample: phase must be in [0, 1), got {phase}")
+    if phase and not closed:
+        raise CurveError(
+            "resample: phase applies to closed curves only (open ones keep their ends)"
+        )
     arr = as_curve(points, closed=closed)
     if closed:
         arr = np.vstack([arr, arr[:1]])
     seg = np.hypot(*np.diff(arr, axis=0).T)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     total = s[-1]
-    t = np.arange(n) * (total / n) if closed else np.linspace(0.0, total, n)
+    t = (np.arange(n) + phase) * (total / n) if closed else np.linspace(0.0, total, n)
     # Segment index of each target: the last vertex with s <= t (clipped to a real segment).
     idx = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(seg) - 1)
     frac = (t - s[idx]) / seg[idx]
     out = arr[idx] + frac[:, None] * (arr[idx + 1] - arr[idx])
-    out[0] = arr[0]
+    if not phase:
+        out[0] = arr[0]
     if not closed:
         out[-1] = arr[-1]
     return out

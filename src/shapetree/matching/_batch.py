@@ -115,6 +115,7 @@ class ModelStack:
             target.g,
             target.blen,
             self.params.kernel_occlusion,
+            self.params.segment_weight,
             tab[: self._n_tables],
             out,
         )

@@ -63,6 +63,7 @@ def fill_tables(
     blen: np.ndarray,
     cyclic: bool,
     occlusion: float,
+    seg_weight: float,
     lmin: np.ndarray,
     lmax: np.ndarray,
     tab: np.ndarray,
@@ -89,6 +90,8 @@ def fill_tables(
         Target subcurves wrap around.
     occlusion : float
         Replacement cost factor κ (``<= 0`` disables replacement).
+    seg_weight : float
+        Factor on the base case "model segment vs a target subcurve" (paper: 1).
     lmin, lmax : int64 (K + S,)
         Band of target lengths each table may use.
     tab : float64 (K + S, m, 2 m)
@@ -108,6 +111,7 @@ def fill_tables(
         else:
             lv = lam[v]
             la = alen[v]
+        lg = lv * seg_weight
         for length in range(lmin[out], lmax[out] + 1):
             ns = m if cyclic else m - length
             if ns <= 0:
@@ -116,7 +120,7 @@ def fill_tables(
             if is_seg:
                 grow = g[length]
                 for s in range(ns):
-                    best[s] = lv * grow[s]
+                    best[s] = lg * grow[s]
             elif length == 1:
                 fl = flat[v]
                 for s in range(ns):
@@ -205,6 +209,7 @@ def closed_costs(
     g: np.ndarray,
     blen: np.ndarray,
     occlusion: float,
+    seg_weight: float,
     tab: np.ndarray,
     out: np.ndarray,
 ) -> None:
@@ -232,6 +237,7 @@ def closed_costs(
             blen,
             True,
             occlusion,
+            seg_weight,
             lmin[r],
             lmax[r],
             tab,

@@ -38,10 +38,18 @@ class MatchParams:
         ``k ρ / band - 1 <= L <= k ρ band + 1`` where ``ρ = m / n`` (``(m-1)/(n-1)`` for
         open curves), i.e. stretch by at most a factor ``band``. ``None`` (default):
         exact matching over all ``L``.
+    segment_weight : float
+        Factor on the base case "a segment of ``A`` against a target subcurve of ``L > 1``
+        segments" (the paper: 1, the cost of the segment subdivided to ``L + 1`` points).
+        ``0`` makes the detail of ``B`` finer than ``A``'s sampling free: with a target
+        sampled more densely than the model (``m = 2 n``, say), ``A``'s points may then
+        land anywhere along ``B`` and only ``A``'s own triangles are compared. Not in the
+        paper.
     """
 
     occlusion: float | None = None
     band: float | None = None
+    segment_weight: float = 1.0
 
     def __post_init__(self) -> None:
         occ = self.occlusion
@@ -49,6 +57,11 @@ class MatchParams:
             raise ShapeTreeError(f"occlusion must be a positive number or None, got {occ}")
         if self.band is not None and not (np.isfinite(self.band) and self.band >= 1):
             raise ShapeTreeError(f"band must be a number >= 1 or None, got {self.band}")
+        sw = self.segment_weight
+        if isinstance(sw, bool) or not (
+            isinstance(sw, int | float) and np.isfinite(sw) and sw >= 0
+        ):
+            raise ShapeTreeError(f"segment_weight must be a number >= 0, got {sw!r}")
 
     @property
     def kernel_occlusion(self) -> float:
@@ -153,6 +166,7 @@ def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = Fa
         target.blen,
         target.closed,
         params.kernel_occlusion,
+        float(params.segment_weight),
         lmin,
         lmax,
         tab,
@@ -205,7 +219,7 @@ class _Traceback:
     def segment(self, seg: int, s: int, length: int) -> None:
         td = self.td
         lam, alen = td.seg_lam[seg], td.seg_alen[seg]
-        cost = lam * self.t.g[length, s % self.m]
+        cost = lam * self.p.segment_weight * self.t.g[length, s % self.m]
         if self._replace_cost(lam, alen, s, length) < cost:
             self.replaced.append((seg, seg + 1, s, s + length))
             self.pos_b[s + 1 : s + length] = np.nan
@@ -389,6 +403,9 @@ def match(
     n_trees: int = 1,
     split: str = "half",
     length_power: float = 1.0,
+    target_points: int | None = None,
+    segment_weight: float = 1.0,
+    band: float | None = None,
 ) -> MatchResult:
     """Deform curve ``a`` onto curve ``b`` with minimum shape-tree deformation (eq. 1).
 
@@ -411,6 +428,14 @@ def match(
         Midpoint rule.
     length_power : float
         λ grows as the subcurve's relative length to this power (paper: 1).
+    target_points : int, optional
+        Resample ``b`` to this many points instead (a target sampled more densely than
+        the model, e.g. ``2 * n_points``, lets ``a``'s points land between ``b``'s).
+    segment_weight : float
+        Factor on the base case "segment of ``a`` vs a subcurve of ``b``" (paper: 1; see
+        :class:`MatchParams`).
+    band : float, optional
+        Pruned matching (see :class:`MatchParams`).
 
     Returns
     -------
@@ -426,14 +451,16 @@ def match(
     """
     a = as_curve(a, closed=closed, name="curve A")
     b = as_curve(b, closed=closed, name="curve B")
+    params = MatchParams(occlusion=occlusion, band=band, segment_weight=segment_weight)
     if n_points is not None:
         a = resample(a, n_points, closed=closed)
-        b = resample(b, n_points, closed=closed)
+    if target_points is not None or n_points is not None:
+        b = resample(b, target_points or n_points, closed=closed)
     model = prepare_model(
         a, closed=closed, n_trees=n_trees, split=split, weight=weight, length_power=length_power
     )
     target = prepare_target(b, closed=closed, length_power=length_power)
-    return match_prepared(model, target, MatchParams(occlusion=occlusion))
+    return match_prepared(model, target, params)
 
 
 def subcurve_table(

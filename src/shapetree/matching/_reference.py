@@ -91,8 +91,10 @@ class ReferenceMatcher:
         occlusion: float | None = None,
         length_scale: float | None = None,
         power: float = 1.0,
+        segment_weight: float = 1.0,
     ) -> None:
         self.tree = tree
+        self.segment_weight = segment_weight
         self.u = tree.unrolled
         self.b = np.asarray(b, dtype=float)
         self.m = len(self.b)
@@ -131,7 +133,7 @@ class ReferenceMatcher:
                 # subdivide A's segment to as many points as B' and match point for point
                 t = np.linspace(0.0, 1.0, length + 1)[:, None]
                 seg = a[0] + t * (a[1] - a[0])
-                cost = _identity_cost(
+                cost = self.segment_weight * _identity_cost(
                     seg, bsub, self.weight, self.la, _half_mids(length + 1), self.power
                 )
         elif length == 1:
@@ -172,6 +174,7 @@ def reference_match_cost(
     weight: float = 1.0,
     occlusion: float | None = None,
     power: float = 1.0,
+    segment_weight: float = 1.0,
 ) -> float:
     """ψ(A, B) by the literal recursion: open A vs open B, or closed A vs closed B.
 
@@ -187,7 +190,13 @@ def reference_match_cost(
     float
     """
     rm = ReferenceMatcher(
-        tree, b, cyclic=tree.closed, weight=weight, occlusion=occlusion, power=power
+        tree,
+        b,
+        cyclic=tree.closed,
+        weight=weight,
+        occlusion=occlusion,
+        power=power,
+        segment_weight=segment_weight,
     )
     m = rm.m
     if not tree.closed:

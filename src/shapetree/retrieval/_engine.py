@@ -94,6 +94,22 @@ class DistanceParams:
     smooth : float or None
         Gaussian smoothing of each curve before resampling, as a fraction of its length
         (:func:`shapetree.curves.smooth`); ``None``: none.
+    phases : int
+        Target phases (not in the paper). With ``P > 1`` every target is also resampled
+        starting ``p / P`` of a sample spacing further along (``p = 1 .. P - 1``) and the
+        cheapest of the ``P`` matchings is kept: the model's points may then land between
+        the target's first sampling, as on a ``P`` times finer target, but without the
+        base-case cost that a finer target's extra points would carry. Needs
+        ``n_points``.
+    target_factor : int
+        Targets are resampled to ``target_factor * n_points`` points (models keep
+        ``n_points``); not in the paper, which samples both curves alike. Needs
+        ``n_points``.
+    segment_weight : float
+        Factor on the base case "model segment vs a target subcurve"
+        (:class:`shapetree.matching.MatchParams`; the paper: 1). With ``target_factor``
+        2 and ``segment_weight`` 0 the model's points land anywhere along the target and
+        only the model's own triangles are compared.
     """
 
     n_points: int | None = 50
@@ -105,19 +121,38 @@ class DistanceParams:
     band: float | None = None
     length_power: float = 1.0
     smooth: float | None = None
+    phases: int = 1
+    target_factor: int = 1
+    segment_weight: float = 1.0
 
     def __post_init__(self) -> None:
         if self.n_points is not None and int(self.n_points) < 4:
             raise ShapeTreeError(f"n_points must be at least 4, got {self.n_points}")
         if int(self.n_trees) < 1:
             raise ShapeTreeError(f"n_trees must be at least 1, got {self.n_trees}")
-        MatchParams(occlusion=self.occlusion, band=self.band)  # validates κ and band
+        # validates κ, band and segment_weight
+        MatchParams(occlusion=self.occlusion, band=self.band, segment_weight=self.segment_weight)
         if not (np.isfinite(self.weight) and self.weight > 0):
             raise ShapeTreeError(f"weight must be a positive number, got {self.weight}")
         if not (np.isfinite(self.length_power) and self.length_power >= 0):
             raise ShapeTreeError(f"length_power must be >= 0, got {self.length_power}")
         if self.smooth is not None and not (np.isfinite(self.smooth) and 0 <= self.smooth < 0.5):
             raise ShapeTreeError(f"smooth must be in [0, 0.5), got {self.smooth}")
+        ph = self.phases
+        if isinstance(ph, bool) or not isinstance(ph, int | np.integer) or ph < 1:
+            raise ShapeTreeError(f"phases must be an integer >= 1, got {self.phases!r}")
+        if self.phases > 1 and self.n_points is None:
+            raise ShapeTreeError("phases > 1 resamples the targets: it needs n_points")
+        tf = self.target_factor
+        if isinstance(tf, bool) or not isinstance(tf, int | np.integer) or tf < 1:
+            raise ShapeTreeError(f"target_factor must be an integer >= 1, got {tf!r}")
+        if tf > 1 and self.n_points is None:
+            raise ShapeTreeError("target_factor > 1 resamples the targets: it needs n_points")
+
+    @property
+    def target_points(self) -> int | None:
+        """Points per target curve (``n_points * target_factor``)."""
+        return None if self.n_points is None else int(self.n_points) * int(self.target_factor)
 
     @property
     def n_pass(self) -> int:
@@ -126,17 +161,29 @@ class DistanceParams:
 
 
 def _prep_curves(
-    curves: Sequence[ArrayLike], n_points: int | None, what: str, sigma: float | None = None
-) -> list[np.ndarray]:
+    curves: Sequence[ArrayLike],
+    n_points: int | None,
+    what: str,
+    sigma: float | None = None,
+    phases: int = 1,
+) -> list[list[np.ndarray]]:
+    """Validated, smoothed and resampled curves: ``out[i][p]`` is curve ``i`` at phase
+    ``p / phases`` (``out[i][0]`` starts at the curve's first point)."""
     out = []
     for i, c in enumerate(curves):
         a = as_curve(c, closed=True, name=f"{what} {i}")
         if sigma:
-            n_keep = a.shape[0] if n_points is None else int(n_points)
-            a = resample(smooth(a, float(sigma), closed=True), n_keep, closed=True)
-        if n_points is not None and a.shape[0] != n_points:
-            a = resample(a, int(n_points), closed=True)
-        out.append(np.ascontiguousarray(a, dtype=np.float64))
+            n_keep = a.shape[0]
+            a = smooth(a, float(sigma), closed=True)  # dense, evenly spaced
+            if n_points is None:
+                a = resample(a, n_keep, closed=True)
+        versions = []
+        for ph in range(phases):
+            b = a
+            if n_points is not None and (ph or sigma or a.shape[0] != n_points):
+                b = resample(a, int(n_points), closed=True, phase=ph / phases)
+            versions.append(np.ascontiguousarray(b, dtype=np.float64))
+        out.append(versions)
     return out
 
 
@@ -150,6 +197,9 @@ def _cache_key(models: list[np.ndarray], targets: list[np.ndarray], p: DistanceP
         del spec["length_power"]
     if not spec["smooth"]:  # and keys without smoothing predate it
         del spec["smooth"]
+    for k, v in (("phases", 1), ("target_factor", 1), ("segment_weight", 1.0)):
+        if spec[k] == v:  # keys of the paper's sampling and base case predate these
+            del spec[k]
     h.update(json.dumps(spec, sort_keys=True).encode())
     for group in (models, targets):
         h.update(struct.pack("<Q", len(group)))
@@ -233,12 +283,13 @@ def read_block(path: Path, meta: dict) -> np.ndarray | None:
 
 def _compute_block(
     models: list[np.ndarray],
-    targets: list[np.ndarray],
+    targets: list[list[np.ndarray]],
     p: DistanceParams,
     tick=None,
 ) -> np.ndarray:
-    """Directed costs of ``models`` (rows) against every target: shape (n_pass, r, m)."""
-    mp = MatchParams(occlusion=p.occlusion, band=p.band)
+    """Directed costs of ``models`` (rows) against every target (given at each of its
+    phases, the cheapest phase kept): shape (n_pass, r, m)."""
+    mp = MatchParams(occlusion=p.occlusion, band=p.band, segment_weight=p.segment_weight)
     kw = dict(
         closed=True,
         n_trees=p.n_trees,
@@ -251,17 +302,19 @@ def _compute_block(
         passes.append([prepare_model(mirror_curve(a), **kw) for a in models])
     out = np.empty((len(passes), len(models), len(targets)))
     flat = [mod for ms in passes for mod in ms]
-    sizes = {a.shape[0] for a in models} | {b.shape[0] for b in targets}
+    sizes = {a.shape[0] for a in models}
+    tsizes = {b.shape[0] for bs in targets for b in bs}
     # equal sizes (the usual case, n_points set): one kernel call per target for the block
-    stack = ModelStack(flat, targets[0].shape[0], mp) if len(sizes) == 1 else None
-    for j, b in enumerate(targets):
-        t = prepare_target(b, closed=True, length_power=p.length_power)
-        if stack is not None:
-            out[:, :, j] = stack.costs(t).reshape(len(passes), len(models))
-        else:
-            for k, ms in enumerate(passes):
-                for i, m in enumerate(ms):
-                    out[k, i, j] = match_cost(m, t, mp)
+    stack = ModelStack(flat, tsizes.pop(), mp) if len(sizes) == len(tsizes) == 1 else None
+    for j, versions in enumerate(targets):
+        out[:, :, j] = np.inf
+        for b in versions:
+            t = prepare_target(b, closed=True, length_power=p.length_power)
+            if stack is not None:
+                c = stack.costs(t).reshape(len(passes), len(models))
+            else:
+                c = np.array([[match_cost(m, t, mp) for m in ms] for ms in passes])
+            np.minimum(out[:, :, j], c, out=out[:, :, j])
         if tick is not None:
             tick(len(models))
     return out
@@ -280,6 +333,9 @@ def directed_costs(
     band: float | None = None,
     length_power: float = 1.0,
     smooth: float | None = None,
+    phases: int = 1,
+    target_factor: int = 1,
+    segment_weight: float = 1.0,
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
     block: int = 8,
@@ -295,7 +351,8 @@ def directed_costs(
         Closed curves whose shape-trees are deformed (rows).
     targets : sequence of array_like, optional
         Closed curves deformed onto (columns); default ``models``.
-    n_points, weight, occlusion, n_trees, split, mirror, band, length_power, smooth
+    n_points, weight, occlusion, n_trees, split, mirror, band, length_power, smooth, phases,
+    target_factor, segment_weight
         See :class:`DistanceParams`.
     workers : int
         Threads (the matching kernel releases the GIL).
@@ -327,9 +384,18 @@ def directed_costs(
         band,
         float(length_power),
         None if not smooth else float(smooth),
+        phases,
+        target_factor,
+        float(segment_weight),
     )
-    ms = _prep_curves(models, p.n_points, "model curve", p.smooth)
-    ts = ms if targets is None else _prep_curves(targets, p.n_points, "target curve", p.smooth)
+    ph, tp = int(p.phases), p.target_points
+    if targets is None and ph == 1 and tp == p.n_points:
+        tv = _prep_curves(models, p.n_points, "curve", p.smooth)
+        ms = [v[0] for v in tv]
+    else:
+        ms = [v[0] for v in _prep_curves(models, p.n_points, "model curve", p.smooth)]
+        tv = _prep_curves(models if targets is None else targets, tp, "target curve", p.smooth, ph)
+    ts = [v[0] for v in tv]
     n, m = len(ms), len(ts)
     block = max(1, int(block))
     out = np.empty((p.n_pass, n, m))
@@ -374,7 +440,7 @@ def directed_costs(
                 bar.update(k)
 
     def job(r0: int, r1: int) -> tuple[int, int, np.ndarray]:
-        arr = _compute_block(ms[r0:r1], ts, p, tick)
+        arr = _compute_block(ms[r0:r1], tv, p, tick)
         if folder is not None:
             write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
         return r0, r1, arr
@@ -460,6 +526,9 @@ def distance_matrix(
     band: float | None = None,
     length_power: float = 1.0,
     smooth: float | None = None,
+    phases: int = 1,
+    target_factor: int = 1,
+    segment_weight: float = 1.0,
     symmetrize: str | None = "min",
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
@@ -493,6 +562,14 @@ def distance_matrix(
     smooth : float or None
         Gaussian smoothing of every curve before resampling, as a fraction of its length
         (:func:`shapetree.curves.smooth`); e.g. 0.005 removes pixel staircases.
+    phases : int
+        Also match each target resampled at ``phases - 1`` offsets of a fraction of a
+        sample spacing, keeping the cheapest (see :class:`DistanceParams`; not in the
+        paper; needs ``n_points``).
+    target_factor : int
+        Targets are resampled to ``target_factor * n_points`` points (not in the paper).
+    segment_weight : float
+        Factor on the base case "model segment vs target subcurve" (paper: 1).
     symmetrize : {"min", "mean", "max", "none", "reverse"} or None
         How the two directions ψ(i, j) and ψ(j, i) are combined (see :func:`combine`);
         ``"none"`` uses ψ(query, database) only (for a rectangular matrix that halves the
@@ -533,6 +610,9 @@ def distance_matrix(
         band=band,
         length_power=length_power,
         smooth=smooth,
+        phases=phases,
+        target_factor=target_factor,
+        segment_weight=segment_weight,
         workers=workers,
         cache_dir=cache_dir,
         progress=progress,

@@ -129,6 +129,24 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
         "help": "Gaussian smoothing of each traced outline before resampling, as a fraction "
         "of its length (0: none)",
     },
+    "phases": {
+        "type": int,
+        "default": None,
+        "help": "target phases: also match each target resampled 1/P, 2/P, ... of a sample "
+        "spacing further along and keep the cheapest (1: the paper's single sampling)",
+    },
+    "target_factor": {
+        "type": int,
+        "default": None,
+        "help": "targets get target_factor x n_points points (1: both curves alike, as in "
+        "the paper)",
+    },
+    "segment_weight": {
+        "type": float,
+        "default": None,
+        "help": "weight of the base case 'model segment vs a target subcurve' (paper: 1; 0 "
+        "makes target detail finer than the model's sampling free)",
+    },
     "symmetrize": {
         "type": str,
         "default": None,
@@ -174,6 +192,9 @@ _MATCH_KEYS = (
     "band",
     "length_power",
     "smooth",
+    "phases",
+    "target_factor",
+    "segment_weight",
     "symmetrize",
 )
 
@@ -190,6 +211,9 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "band": 4.0,
         "length_power": 1.0,
         "smooth": None,
+        "phases": 1,
+        "target_factor": 1,
+        "segment_weight": 1.0,
         "symmetrize": "none",
     },
     "mpeg7": {
@@ -202,6 +226,9 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "band": 3.0,
         "length_power": 1.0,
         "smooth": None,
+        "phases": 1,
+        "target_factor": 1,
+        "segment_weight": 1.0,
         "symmetrize": "none",
     },
     "swedish_leaf": {
@@ -214,6 +241,9 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "band": 2.0,
         "length_power": 2.0,  # top-level (global) deformations weigh more; see swedish_leaf.json
         "smooth": None,
+        "phases": 1,
+        "target_factor": 1,
+        "segment_weight": 1.0,
         "symmetrize": "none",
     },
 }
@@ -363,8 +393,10 @@ def evaluate(
     p = _resolve(name, params)
     ds = datasets.load(
         name,
-        # smoothing works on the traced outline, so resampling waits for the engine
-        n_points=None if p["smooth"] else p["n_points"],
+        # smoothing and phases work on the traced outline, so resampling waits for the engine
+        n_points=None
+        if (p["smooth"] or p["phases"] > 1 or p["target_factor"] > 1)
+        else p["n_points"],
         progress=progress,
         classes=p["classes"],
         per_class=p["per_class"],
@@ -383,6 +415,9 @@ def evaluate(
         band=p["band"],
         length_power=p["length_power"],
         smooth=p["smooth"],
+        phases=p["phases"],
+        target_factor=p["target_factor"],
+        segment_weight=p["segment_weight"],
         workers=p["workers"],
         cache_dir=p["cache_dir"],
         block=p["block"],
