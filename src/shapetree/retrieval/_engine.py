@@ -338,7 +338,7 @@ def directed_costs(
     segment_weight: float = 1.0,
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
-    block: int = 8,
+    block: int | None = None,
     progress: bool = True,
     desc: str = "matching",
     stats: dict | None = None,
@@ -359,8 +359,10 @@ def directed_costs(
     cache_dir : path-like, optional
         Folder for finished row blocks; a sub-folder named by the cache key (a SHA-256 of
         the resampled curves and every parameter above) is used.
-    block : int
-        Rows per block (the unit of work, of caching and of resumption).
+    block : int, optional
+        Rows per block (the unit of work, of caching and of resumption); default
+        ``ceil(n_models / (4 workers))``, at most 32. Each target is prepared once per
+        block, so larger blocks spend less time on that.
     progress : bool
         Show a tqdm progress bar with ETA.
     desc : str
@@ -397,6 +399,8 @@ def directed_costs(
         tv = _prep_curves(models if targets is None else targets, tp, "target curve", p.smooth, ph)
     ts = [v[0] for v in tv]
     n, m = len(ms), len(ts)
+    if block is None:
+        block = min(32, -(-n // (4 * max(1, int(workers)))))
     block = max(1, int(block))
     out = np.empty((p.n_pass, n, m))
     ranges = [(r0, min(n, r0 + block)) for r0 in range(0, n, block)]
@@ -533,7 +537,7 @@ def distance_matrix(
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
     progress: bool = True,
-    block: int = 8,
+    block: int | None = None,
 ) -> np.ndarray:
     """Shape-tree distances between closed curves (all pairs, or queries × database).
 
@@ -580,8 +584,8 @@ def distance_matrix(
         Resumable cache of finished row blocks (see :func:`directed_costs`).
     progress : bool
         tqdm progress bar with ETA.
-    block : int
-        Rows per cached block.
+    block : int, optional
+        Rows per cached block (see :func:`directed_costs`).
 
     Returns
     -------

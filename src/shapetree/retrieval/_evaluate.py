@@ -163,7 +163,12 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
         "as the headline, with the pairwise score kept under 'pairwise'",
     },
     "workers": {"type": int, "default": 2, "help": "threads"},
-    "block": {"type": int, "default": 8, "help": "rows per cached block"},
+    "block": {
+        "type": int,
+        "default": None,
+        "help": "rows per cached block (default: n / (4 workers), at most 32; each target is "
+        "prepared once per block)",
+    },
     "cache_dir": {
         "type": str,
         "default": None,
