@@ -55,8 +55,15 @@ def test_matrix_equals_direct_match_cost() -> None:
         workers=2,
         block=2,
         progress=False,
+        precision="float64",
     )
     assert c.shape == (2, 5, 5)
+    # the default float32 tables agree to about 1e-6 relative
+    c32 = directed_costs(
+        curves, n_points=n, occlusion=occ, n_trees=nt, mirror=True, workers=1, progress=False
+    )
+    np.testing.assert_allclose(c32, c, rtol=2e-5, atol=1e-9)
+    assert not np.array_equal(c32, c)
     mp = MatchParams(occlusion=occ)
     for i, a in enumerate(rs):
         for j, b in enumerate(rs):
@@ -75,10 +82,18 @@ def test_matrix_equals_direct_match_cost() -> None:
         symmetrize="min",
         workers=1,
         progress=False,
+        precision="float64",
     )
     assert np.array_equal(d, np.minimum(c.min(0), c.min(0).T))
     d_none = distance_matrix(
-        curves, n_points=n, occlusion=occ, n_trees=nt, symmetrize=None, workers=1, progress=False
+        curves,
+        n_points=n,
+        occlusion=occ,
+        n_trees=nt,
+        symmetrize=None,
+        workers=1,
+        progress=False,
+        precision="float64",
     )
     assert np.array_equal(d_none, c[0])
     assert np.allclose(np.diag(d_none), 0.0)
@@ -187,7 +202,13 @@ def test_length_power_reaches_the_matcher():
 
     curves = _shapes(5, seed=3)
     D = distance_matrix(
-        curves, n_points=20, length_power=1.5, symmetrize=None, workers=1, progress=False
+        curves,
+        n_points=20,
+        length_power=1.5,
+        symmetrize=None,
+        workers=1,
+        progress=False,
+        precision="float64",
     )
     from shapetree.curves import resample
 
@@ -205,6 +226,7 @@ def test_smooth_reaches_the_matcher_and_the_cache_key(tmp_path: Path):
 
     curves = _shapes(4, n=200, seed=5)
     kw = dict(n_points=24, symmetrize=None, workers=1, progress=False, cache_dir=tmp_path)
+    kw["precision"] = "float64"  # compared with match_cost (float64) to 1e-12
     D = distance_matrix(curves, smooth=0.01, **kw)
     pts = [resample(smooth(c, 0.01, closed=True), 24, closed=True) for c in curves]
     ref = match_cost(prepare_model(pts[2]), prepare_target(pts[0]))
@@ -222,7 +244,7 @@ def test_phases_and_dense_targets_reach_the_matcher():
     matching computed directly."""
     curves = _shapes(4, seed=7)
     n = 16
-    kw = dict(n_points=n, symmetrize=None, workers=1, progress=False)
+    kw = dict(n_points=n, symmetrize=None, workers=1, progress=False, precision="float64")
     D = distance_matrix(curves, phases=3, **kw)
     E = distance_matrix(curves, target_factor=2, segment_weight=0.0, **kw)
     for i, j in [(0, 1), (2, 3), (3, 0)]:
@@ -250,6 +272,7 @@ def test_phases_and_dense_targets_reach_the_matcher():
         (dict(segment_weight=-1.0), "segment_weight must be a number >= 0"),
         (dict(phases=2, n_points=None), "needs n_points"),
         (dict(target_factor=2, n_points=None), "needs n_points"),
+        (dict(precision="half"), "precision must be one of"),
     ],
 )
 def test_bad_sampling_options_are_named(bad, words):

@@ -8,19 +8,16 @@ all of them against a target with one call of :func:`._kernels.closed_costs`.
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Sequence
 
 import numpy as np
 
 from shapetree._errors import ShapeTreeError
 from shapetree.matching._kernels import closed_costs
-from shapetree.matching._match import MatchParams, _bands, _check_pair
+from shapetree.matching._match import MatchParams, _bands, _buffers, _check_pair
 from shapetree.matching._prepare import Model, Target
 
 __all__ = ["ModelStack"]
-
-_workspace = threading.local()
 
 
 class ModelStack:
@@ -35,14 +32,22 @@ class ModelStack:
         Number of points of the targets they will be matched against (the bands of the
         pruned mode depend on it).
     params : MatchParams, optional
+    dtype : {numpy.float64, numpy.float32}
+        Precision of the tables; targets must be prepared with the same ``dtype``.
 
     Notes
     -----
-    ``costs(target)[i]`` equals ``match_cost(models[i], target, params)``: the same kernel
-    fills the same tables, only the Python loop around it is gone.
+    ``costs(target)[i]`` equals ``match_cost(models[i], target, params)`` (to rounding):
+    the same kernel fills the same tables, only the Python loop around it is gone.
     """
 
-    def __init__(self, models: Sequence[Model], m: int, params: MatchParams | None = None) -> None:
+    def __init__(
+        self,
+        models: Sequence[Model],
+        m: int,
+        params: MatchParams | None = None,
+        dtype: type = np.float64,
+    ) -> None:
         self.params = params or MatchParams()
         models = list(models)
         if not models:
@@ -65,6 +70,8 @@ class ModelStack:
         self.n_models, self.n_trees = len(models), n_trees
         tds = [td for mod in models for td in mod.trees]
         bands = [_bands(td, self.m, self.params.band) for td in tds]
+        self.dtype = np.dtype(dtype)
+        per_tree = [td.kernel_arrays(self.dtype) for td in tds]
 
         def stack(name: str) -> np.ndarray:
             return np.ascontiguousarray(np.stack([getattr(td, name) for td in tds]))
@@ -72,14 +79,7 @@ class ModelStack:
         self._arrays = (
             stack("left_tab"),
             stack("right_tab"),
-            stack("lam"),
-            stack("pa"),
-            stack("bar"),
-            stack("bai"),
-            stack("flat"),
-            stack("alen"),
-            stack("seg_lam"),
-            stack("seg_alen"),
+            *(np.ascontiguousarray(np.stack(col)) for col in zip(*per_tree)),
             np.ascontiguousarray(np.stack([b[0] for b in bands])),
             np.ascontiguousarray(np.stack([b[1] for b in bands])),
             np.array([td.table_of_root(td.tree.roots[0], 0) for td in tds], dtype=np.int64),
@@ -104,11 +104,13 @@ class ModelStack:
             raise ShapeTreeError(
                 f"this ModelStack was built for targets of {self.m} points, got {target.n_points}"
             )
-        tab = getattr(_workspace, "tab", None)
-        if tab is None or tab.shape[0] < self._n_tables or tab.shape[1] != self.m:
-            tab = np.empty((self._n_tables, self.m, 2 * self.m))
-            _workspace.tab = tab
-        out = np.empty(self.n_models * self.n_trees)
+        if target.tri.dtype != self.dtype:
+            raise ShapeTreeError(
+                f"this ModelStack runs in {self.dtype}; prepare the target with that dtype "
+                f"(got {target.tri.dtype})"
+            )
+        tab = _buffers(self._n_tables, self.m, self.dtype)
+        out = np.empty(self.n_models * self.n_trees, dtype=self.dtype)
         closed_costs(
             *self._arrays,
             target.tri,
@@ -116,7 +118,8 @@ class ModelStack:
             target.blen,
             self.params.kernel_occlusion,
             self.params.segment_weight,
-            tab[: self._n_tables],
+            tab,
             out,
         )
-        return np.maximum(out.reshape(self.n_models, self.n_trees).min(axis=1), 0.0)
+        best = out.reshape(self.n_models, self.n_trees).min(axis=1).astype(np.float64)
+        return np.maximum(best, 0.0)

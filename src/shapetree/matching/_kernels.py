@@ -21,20 +21,19 @@ The loops run ``node -> L -> k -> s`` with ``s`` innermost: the minimum over the
 ``dif``
 -------
 ``dif`` is the squared full Procrustes distance between the model triangle
-``(a_start, a_mid, a_end)`` and the target triangle ``(b_s, b_{s+k}, b_{s+L})``. A
-triangle with Helmert coordinates ``h1 = (p3 - p1) / sqrt 2`` and
-``h2 = (2 p2 - p1 - p3) / sqrt 6`` (complex numbers) is stored as
+``(a_start, a_mid, a_end)`` and the target triangle ``(b_s, b_{s+k}, b_{s+L})``. Each
+triangle is kept as its unit-size Helmert coordinates ``z = (z1, z2)`` (``h1 = (p3 - p1) /
+sqrt 2``, ``h2 = (2 p2 - p1 - p3) / sqrt 6``, divided by ``sqrt(|h1|^2 + |h2|^2)``),
+rotated so that ``z1`` is real and ``>= 0``. By Lagrange's identity for unit vectors of
+``C^2``,
 
-    p = |h1|^2 / (|h1|^2 + |h2|^2),      beta = h2 conj(h1) / (|h1|^2 + |h2|^2),
+    dif = 1 - |<z_a, z_b>|^2 = |a1 z2 - a2 z1|^2,
 
-(the entries of the rank-one projector onto its unit Helmert vector), and then
-
-    dif = 1 - |<z_a, z_b>|^2 = p_a + p_b - 2 p_a p_b - 2 Re(conj(beta_a) beta_b),
-
-which is *linear* in the target's ``(p_b, beta_b)``: per node the inner loop needs three
-multiply-adds, and the constant ``λ p_a`` is added after the minimum over ``k``. A target
-triangle whose three points coincide has no shape; it gets ``p = 1/2, beta = 0``
-(``dif = 1/2`` against every model triangle, the mean over all shapes).
+a sum of two squares with no cancellation, so the tables keep their relative precision
+in float32 too. The model's coordinates are scaled by ``sqrt(λ)`` once per node, so the
+inner loop adds ``wr^2 + wi^2`` with ``wr + i wi = sqrt(λ) (a1 z2 - a2 z1)``: four
+multiply-adds and two squares per entry. A target triangle whose three points coincide
+has no shape; it is given ``z = (1, 0)``, the shape of an evenly subdivided segment.
 """
 
 from __future__ import annotations
@@ -51,9 +50,9 @@ def fill_tables(
     left_tab: np.ndarray,
     right_tab: np.ndarray,
     lam: np.ndarray,
-    pa: np.ndarray,
-    bar: np.ndarray,
-    bai: np.ndarray,
+    ra1: np.ndarray,
+    ra2r: np.ndarray,
+    ra2i: np.ndarray,
     flat: np.ndarray,
     alen: np.ndarray,
     seg_lam: np.ndarray,
@@ -74,14 +73,15 @@ def fill_tables(
     ----------
     left_tab, right_tab : int64 (K,)
         Table index of each node's children (the model's segments have indices ``K ..``).
-    lam, pa, bar, bai, flat, alen : float64 (K,)
-        Per node: λ (weight included); its triangle's ``p`` and ``beta`` (real, imaginary;
-        see the module docstring); cost against a straight target segment (base case);
-        relative arclength (for the replacement cost).
+    lam, ra1, ra2r, ra2i, flat, alen : float (K,)
+        Per node: λ (weight included); ``sqrt(λ)`` times its triangle's Helmert
+        coordinates ``a1`` (real), ``a2`` (real and imaginary part; module docstring); its
+        cost against a straight target segment (base case); its relative arclength (for
+        the replacement cost).
     seg_lam, seg_alen : float64 (S,)
         Per model segment: λ and relative arclength.
-    tri : float64 (m, m, 3, m)
-        Target triangles ``[L, k, (p, beta.real, beta.imag), s]``.
+    tri : float (m, m, 3, m)
+        Target triangles ``[L, k, (z1, z2.real, z2.imag), s]``.
     g : float64 (m, m)
         ``g[L, s]``: base-case cost per unit λ of a straight segment vs subcurve (s, L).
     blen : float64 (m, m)
@@ -126,9 +126,11 @@ def fill_tables(
                 for s in range(ns):
                     best[s] = fl
             else:
-                cu = lv * (1.0 - 2.0 * pa[v])
-                cv = -2.0 * lv * bar[v]
-                cw = -2.0 * lv * bai[v]
+                # coefficients read from arrays of the tables' precision, so that a
+                # float32 run stays in float32 in the inner loop
+                q1 = ra1[v]
+                qr = ra2r[v]
+                qi = ra2i[v]
                 lt = left_tab[v]
                 rt = right_tab[v]
                 for s in range(ns):
@@ -139,16 +141,15 @@ def fill_tables(
                 for k in range(k0, k1 + 1):
                     lrow = tab[lt, k]
                     rrow = tab[rt, length - k, k : k + ns]
-                    tp = tri[length, k, 0]
-                    tr = tri[length, k, 1]
-                    ti = tri[length, k, 2]
+                    z1 = tri[length, k, 0]
+                    zr = tri[length, k, 1]
+                    zi = tri[length, k, 2]
                     for s in range(ns):
-                        c = lrow[s] + rrow[s] + cu * tp[s] + cv * tr[s] + cw * ti[s]
+                        wr = q1 * zr[s] - qr * z1[s]
+                        wi = q1 * zi[s] - qi * z1[s]
+                        c = lrow[s] + rrow[s] + wr * wr + wi * wi
                         b = best[s]
                         best[s] = c if c < b else b
-                const = lv * pa[v]
-                for s in range(ns):
-                    best[s] += const
             if occl:
                 brow = blen[length]
                 for s in range(ns):
@@ -194,9 +195,9 @@ def closed_costs(
     left_tab: np.ndarray,
     right_tab: np.ndarray,
     lam: np.ndarray,
-    pa: np.ndarray,
-    bar: np.ndarray,
-    bai: np.ndarray,
+    ra1: np.ndarray,
+    ra2r: np.ndarray,
+    ra2i: np.ndarray,
     flat: np.ndarray,
     alen: np.ndarray,
     seg_lam: np.ndarray,
@@ -225,9 +226,9 @@ def closed_costs(
             left_tab[r],
             right_tab[r],
             lam[r],
-            pa[r],
-            bar[r],
-            bai[r],
+            ra1[r],
+            ra2r[r],
+            ra2i[r],
             flat[r],
             alen[r],
             seg_lam[r],
@@ -249,9 +250,17 @@ def closed_costs(
 
 @njit(cache=True, fastmath=False, nogil=True)
 def target_tables(
-    bx: np.ndarray, by: np.ndarray, cyclic: bool, power: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    bx: np.ndarray,
+    by: np.ndarray,
+    cyclic: bool,
+    power: float,
+    tri: np.ndarray,
+    g: np.ndarray,
+    blen: np.ndarray,
+) -> None:
     """Per-target precomputation: triangle shapes, base-case costs and subcurve lengths.
+
+    Computed in float64 and stored in the outputs' precision (float64 or float32).
 
     Parameters
     ----------
@@ -260,17 +269,14 @@ def target_tables(
     cyclic : bool
     power : float
         λ exponent (a piece of ``l`` of the ``L`` segments weighs ``(l / L) ** power``).
-
-    Returns
-    -------
-    tri : (m, m, 3, m) ``[L, k, (p, beta.real, beta.imag), s]``
-    g : (m, m) ``[L, s]``
-    blen : (m, m) ``[L, s]``
+    tri : (m, m, 3, m)
+        Output ``[L, k, (z1, z2.real, z2.imag), s]``.
+    g : (m, m)
+        Output ``[L, s]``, zeroed by the caller.
+    blen : (m, m)
+        Output ``[L, s]``, zeroed by the caller.
     """
     m = bx.shape[0]
-    tri = np.empty((m, m, 3, m))
-    g = np.zeros((m, m))
-    blen = np.zeros((m, m))
     h = np.zeros((m, m))
     nseg = m if cyclic else m - 1
     seg = np.empty(nseg)
@@ -306,12 +312,19 @@ def target_tables(
                 h2i = (2.0 * y2[s + k] - y2[s] - y2[s + length]) / _SQRT6
                 den = n1[s] + h2r * h2r + h2i * h2i
                 if den > 0:
-                    inv = 1.0 / den
-                    tp[s] = n1[s] * inv
-                    tr[s] = (h2r * h1r[s] + h2i * h1i[s]) * inv
-                    ti[s] = (h2i * h1r[s] - h2r * h1i[s]) * inv
-                else:
-                    tp[s] = 0.5
+                    # z1 = |h1| / N, z2 = h2 conj(h1) / (|h1| N): rotated so z1 is real
+                    a = np.sqrt(n1[s])
+                    inv = 1.0 / np.sqrt(den)
+                    tp[s] = a * inv
+                    if a > 0:
+                        inv2 = inv / a
+                        tr[s] = (h2r * h1r[s] + h2i * h1i[s]) * inv2
+                        ti[s] = (h2i * h1r[s] - h2r * h1i[s]) * inv2
+                    else:  # b_s == b_e: any rotation; keep h2's
+                        tr[s] = h2r * inv
+                        ti[s] = h2i * inv
+                else:  # three coincident points: the shape of an even segment
+                    tp[s] = 1.0
                     tr[s] = 0.0
                     ti[s] = 0.0
     # base case: a straight segment subdivided to L + 1 points matched point for point
@@ -321,15 +334,15 @@ def target_tables(
         w = kk / length - 0.5  # Bookstein coordinate of the subdivided segment's midpoint
         h1 = 1.0 / _SQRT2
         h2 = 2.0 * w / _SQRT6
-        den = h1 * h1 + h2 * h2
-        p_a = h1 * h1 / den
-        b_a = h2 * h1 / den
+        nrm = np.sqrt(h1 * h1 + h2 * h2)
+        a1 = h1 / nrm
+        a2 = h2 / nrm  # real: the subdivided segment is straight
         for s in range(m):
             if not cyclic and s + length > m - 1:
                 break
-            p_b = tri[length, kk, 0, s]
-            dif = max(p_a + p_b - 2.0 * p_a * p_b - 2.0 * b_a * tri[length, kk, 1, s], 0.0)
+            wr = a1 * float(tri[length, kk, 1, s]) - a2 * float(tri[length, kk, 0, s])
+            wi = a1 * float(tri[length, kk, 2, s])
+            dif = wr * wr + wi * wi
             right = (s + kk) % m
             h[length, s] = h[kk, s] + h[length - kk, right] + length**power * dif
             g[length, s] = h[length, s] / length**power
-    return tri, g, blen

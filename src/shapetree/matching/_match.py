@@ -113,12 +113,14 @@ class MatchResult:
 _workspace = threading.local()
 
 
-def _buffers(n_tables: int, m: int) -> np.ndarray:
+def _buffers(n_tables: int, m: int, dtype: type = np.float64) -> np.ndarray:
     """This thread's reusable table buffer (fresh memory costs page faults on every call)."""
-    buf = getattr(_workspace, "buf", None)
+    bufs = getattr(_workspace, "bufs", None)
+    if bufs is None:
+        bufs = _workspace.bufs = {}
+    buf = bufs.get(np.dtype(dtype))
     if buf is None or buf.shape[0] < n_tables or buf.shape[1] != m:
-        buf = np.empty((n_tables, m, 2 * m))
-        _workspace.buf = buf
+        buf = bufs[np.dtype(dtype)] = np.empty((n_tables, m, 2 * m), dtype=dtype)
     return buf[:n_tables]
 
 
@@ -149,18 +151,12 @@ def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = Fa
     reusing call). Only the rows inside each table's band are written."""
     m = target.n_points
     lmin, lmax = _bands(td, m, params.band)
-    tab = _buffers(td.n_tables, m) if reuse else np.empty((td.n_tables, m, 2 * m))
+    dt = target.tri.dtype
+    tab = _buffers(td.n_tables, m, dt) if reuse else np.empty((td.n_tables, m, 2 * m), dt)
     fill_tables(
         td.left_tab,
         td.right_tab,
-        td.lam,
-        td.pa,
-        td.bar,
-        td.bai,
-        td.flat,
-        td.alen,
-        td.seg_lam,
-        td.seg_alen,
+        *td.kernel_arrays(dt),
         target.tri,
         target.g,
         target.blen,
@@ -248,8 +244,9 @@ class _Traceback:
             left = self.tab[lt, ks, ss]
             right = self.tab[rt, length - ks, ss + ks]
             tri = self.t.tri[length, ks, :, ss]
-            pa, br, bi = td.pa[v], td.bar[v], td.bai[v]
-            dif = pa + tri[:, 0] * (1.0 - 2.0 * pa) - 2.0 * (br * tri[:, 1] + bi * tri[:, 2])
+            wr = td.a1[v] * tri[:, 1] - td.a2r[v] * tri[:, 0]
+            wi = td.a1[v] * tri[:, 2] - td.a2i[v] * tri[:, 0]
+            dif = wr**2 + wi**2
             tot = left + right + td.lam[v] * dif
             if tot.size == 0:  # no admissible split: only a replacement can cover (s, L)
                 best, k = np.inf, -1

@@ -38,10 +38,9 @@ class Target:
     closed : bool
         Closed targets have cyclic subcurves.
     tri : ndarray, shape (m, m, 3, m)
-        The triangles ``(b_s, b_{s+k}, b_{s+L})``, indexed ``[L, k, c, s]``: ``c = 0`` is
-        ``p = |h1|^2 / (|h1|^2 + |h2|^2)`` and ``c = 1, 2`` are the real and imaginary
-        parts of ``beta = h2 conj(h1) / (|h1|^2 + |h2|^2)`` for the Helmert coordinates
-        ``h1, h2`` (see :mod:`shapetree.matching._kernels`).
+        The triangles ``(b_s, b_{s+k}, b_{s+L})``, indexed ``[L, k, c, s]``: their unit
+        Helmert coordinates ``z1`` (``c = 0``, real, rotated so) and ``z2`` (``c = 1, 2``:
+        real and imaginary part); see :mod:`shapetree.matching._kernels`.
     g : ndarray, shape (m, m)
         ``g[L, s]``: base-case cost per unit λ of a straight segment subdivided into
         ``L + 1`` points and matched point for point to ``B[s..s+L]``.
@@ -49,6 +48,9 @@ class Target:
         ``blen[L, s]``: arclength of ``B[s..s+L]`` relative to the length of ``B``.
     length_power : float
         λ exponent the base-case table ``g`` was made for (see :func:`prepare_model`).
+
+    The tables are float64, or float32 with ``prepare_target(..., dtype=np.float32)``
+    (the retrieval engine's precision; the kernel then runs in float32).
     """
 
     points: np.ndarray
@@ -63,7 +65,13 @@ class Target:
         return int(self.points.shape[0])
 
 
-def prepare_target(points: ArrayLike, *, closed: bool = True, length_power: float = 1.0) -> Target:
+def prepare_target(
+    points: ArrayLike,
+    *,
+    closed: bool = True,
+    length_power: float = 1.0,
+    dtype: type = np.float64,
+) -> Target:
     """Precompute the target-side data of eq. (1) for curve ``B``.
 
     Parameters
@@ -74,6 +82,8 @@ def prepare_target(points: ArrayLike, *, closed: bool = True, length_power: floa
         Whether ``B`` is closed (its subcurves then wrap around).
     length_power : float
         Must equal the model's (:func:`prepare_model`); it shapes the base-case table.
+    dtype : {numpy.float64, numpy.float32}
+        Precision of the tables (computed in float64 either way).
 
     Returns
     -------
@@ -82,8 +92,21 @@ def prepare_target(points: ArrayLike, *, closed: bool = True, length_power: floa
     b = as_curve(points, closed=closed, name="target curve")
     if not (np.isfinite(length_power) and length_power >= 0):
         raise ShapeTreeError(f"length_power must be a number >= 0, got {length_power}")
-    tri, g, blen = target_tables(
-        np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]), closed, float(length_power)
+    dt = np.dtype(dtype)
+    if dt not in (np.float64, np.float32):
+        raise ShapeTreeError(f"dtype must be float64 or float32, got {dt}")
+    m = b.shape[0]
+    tri = np.empty((m, m, 3, m), dtype=dt)
+    g = np.zeros((m, m), dtype=dt)
+    blen = np.zeros((m, m), dtype=dt)
+    target_tables(
+        np.ascontiguousarray(b[:, 0]),
+        np.ascontiguousarray(b[:, 1]),
+        closed,
+        float(length_power),
+        tri,
+        g,
+        blen,
     )
     return Target(
         points=b,
@@ -103,15 +126,30 @@ class TreeData:
     left_tab: np.ndarray
     right_tab: np.ndarray
     lam: np.ndarray
-    pa: np.ndarray
-    bar: np.ndarray
-    bai: np.ndarray
+    a1: np.ndarray
+    a2r: np.ndarray
+    a2i: np.ndarray
+    ra1: np.ndarray
+    ra2r: np.ndarray
+    ra2i: np.ndarray
     flat: np.ndarray
     alen: np.ndarray
     seg_start: np.ndarray
     seg_lam: np.ndarray
     seg_alen: np.ndarray
     band_cache: dict = field(default_factory=dict, repr=False)
+    dtype_cache: dict = field(default_factory=dict, repr=False)
+
+    def kernel_arrays(self, dtype: np.dtype) -> tuple[np.ndarray, ...]:
+        """``(lam, ra1, ra2r, ra2i, flat, alen, seg_lam, seg_alen)`` in ``dtype`` (the
+        tables' precision), as :func:`._kernels.fill_tables` takes them."""
+        dt = np.dtype(dtype)
+        if dt not in self.dtype_cache:
+            names = ("lam", "ra1", "ra2r", "ra2i", "flat", "alen", "seg_lam", "seg_alen")
+            self.dtype_cache[dt] = tuple(
+                np.ascontiguousarray(getattr(self, k), dtype=dt) for k in names
+            )
+        return self.dtype_cache[dt]
 
     @property
     def n_tables(self) -> int:
@@ -164,9 +202,13 @@ def tree_data(
         left_tab=left_tab.astype(np.int64),
         right_tab=right_tab.astype(np.int64),
         lam=np.ascontiguousarray(lam),
-        pa=np.ascontiguousarray(a1**2),
-        bar=np.ascontiguousarray(a1 * a2.real),
-        bai=np.ascontiguousarray(a1 * a2.imag),
+        a1=np.ascontiguousarray(a1),
+        a2r=np.ascontiguousarray(a2.real),
+        a2i=np.ascontiguousarray(a2.imag),
+        # λ dif = |sqrt(λ) (a1 z2 - a2 z1)|^2 (see ._kernels)
+        ra1=np.ascontiguousarray(np.sqrt(lam) * a1),
+        ra2r=np.ascontiguousarray(np.sqrt(lam) * a2.real),
+        ra2i=np.ascontiguousarray(np.sqrt(lam) * a2.imag),
         flat=flat,
         alen=alen,
         seg_start=seg_start,

@@ -33,6 +33,7 @@ from shapetree.matching._batch import ModelStack
 
 __all__ = [
     "ENGINE_VERSION",
+    "PRECISIONS",
     "SYMMETRIZE",
     "DistanceParams",
     "combine",
@@ -42,9 +43,12 @@ __all__ = [
 ]
 
 #: Bump when the meaning of a cached block changes (kernel, cost definition, layout).
-ENGINE_VERSION = 2
+ENGINE_VERSION = 3
 _MAGIC = b"SHAPETREE-DMBLOCK\n"
 _HDR = struct.Struct("<Q")
+
+#: Table precisions of the engine (``DistanceParams.precision``).
+PRECISIONS = {"float32": np.float32, "float64": np.float64}
 
 #: Accepted ``symmetrize`` values (``None`` is the same as ``"none"``).
 SYMMETRIZE = ("min", "mean", "max", "none", "reverse")
@@ -110,6 +114,10 @@ class DistanceParams:
         (:class:`shapetree.matching.MatchParams`; the paper: 1). With ``target_factor``
         2 and ``segment_weight`` 0 the model's points land anywhere along the target and
         only the model's own triangles are compared.
+    precision : {"float32", "float64"}
+        Precision of the dynamic-programming tables. ``float32`` (default) runs the kernel
+        about twice as fast; costs then differ from float64 by about 1e-6 relative, far
+        below the gaps that rank shapes.
     """
 
     n_points: int | None = 50
@@ -124,6 +132,7 @@ class DistanceParams:
     phases: int = 1
     target_factor: int = 1
     segment_weight: float = 1.0
+    precision: str = "float32"
 
     def __post_init__(self) -> None:
         if self.n_points is not None and int(self.n_points) < 4:
@@ -148,6 +157,15 @@ class DistanceParams:
             raise ShapeTreeError(f"target_factor must be an integer >= 1, got {tf!r}")
         if tf > 1 and self.n_points is None:
             raise ShapeTreeError("target_factor > 1 resamples the targets: it needs n_points")
+        if self.precision not in PRECISIONS:
+            raise ShapeTreeError(
+                f"precision must be one of {tuple(PRECISIONS)}, got {self.precision!r}"
+            )
+
+    @property
+    def dtype(self) -> np.dtype:
+        """NumPy dtype of the kernel's tables."""
+        return np.dtype(PRECISIONS[self.precision])
 
     @property
     def target_points(self) -> int | None:
@@ -305,11 +323,12 @@ def _compute_block(
     sizes = {a.shape[0] for a in models}
     tsizes = {b.shape[0] for bs in targets for b in bs}
     # equal sizes (the usual case, n_points set): one kernel call per target for the block
-    stack = ModelStack(flat, tsizes.pop(), mp) if len(sizes) == len(tsizes) == 1 else None
+    batched = len(sizes) == len(tsizes) == 1
+    stack = ModelStack(flat, next(iter(tsizes)), mp, p.dtype) if batched else None
     for j, versions in enumerate(targets):
         out[:, :, j] = np.inf
         for b in versions:
-            t = prepare_target(b, closed=True, length_power=p.length_power)
+            t = prepare_target(b, closed=True, length_power=p.length_power, dtype=p.dtype)
             if stack is not None:
                 c = stack.costs(t).reshape(len(passes), len(models))
             else:
@@ -336,6 +355,7 @@ def directed_costs(
     phases: int = 1,
     target_factor: int = 1,
     segment_weight: float = 1.0,
+    precision: str = "float32",
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
     block: int | None = None,
@@ -352,7 +372,7 @@ def directed_costs(
     targets : sequence of array_like, optional
         Closed curves deformed onto (columns); default ``models``.
     n_points, weight, occlusion, n_trees, split, mirror, band, length_power, smooth, phases,
-    target_factor, segment_weight
+    target_factor, segment_weight, precision
         See :class:`DistanceParams`.
     workers : int
         Threads (the matching kernel releases the GIL).
@@ -389,6 +409,7 @@ def directed_costs(
         phases,
         target_factor,
         float(segment_weight),
+        precision,
     )
     ph, tp = int(p.phases), p.target_points
     if targets is None and ph == 1 and tp == p.n_points:
@@ -533,6 +554,7 @@ def distance_matrix(
     phases: int = 1,
     target_factor: int = 1,
     segment_weight: float = 1.0,
+    precision: str = "float32",
     symmetrize: str | None = "min",
     workers: int = 2,
     cache_dir: str | os.PathLike[str] | None = None,
@@ -574,6 +596,8 @@ def distance_matrix(
         Targets are resampled to ``target_factor * n_points`` points (not in the paper).
     segment_weight : float
         Factor on the base case "model segment vs target subcurve" (paper: 1).
+    precision : {"float32", "float64"}
+        Precision of the kernel's tables (see :class:`DistanceParams`).
     symmetrize : {"min", "mean", "max", "none", "reverse"} or None
         How the two directions ψ(i, j) and ψ(j, i) are combined (see :func:`combine`);
         ``"none"`` uses ψ(query, database) only (for a rectangular matrix that halves the
@@ -617,6 +641,7 @@ def distance_matrix(
         phases=phases,
         target_factor=target_factor,
         segment_weight=segment_weight,
+        precision=precision,
         workers=workers,
         cache_dir=cache_dir,
         progress=progress,
