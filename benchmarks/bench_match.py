@@ -16,7 +16,10 @@ What is measured, per size ``n = m``:
 * ``band=r``: the pruned mode (``MatchParams(band=r)``), its speed-up over exact and how
   much its costs differ from the exact ones (relative, mean and max over the pairs);
 * ``reference``: the literal pure-Python recursion (``reference_match_cost``), for the
-  sizes up to ``--reference-max``; the ratio reference/kernel is taken at the same size.
+  sizes up to ``--reference-max``; the ratio reference/kernel is taken at the same size;
+* ``stack``: the retrieval engine's path, all models against a target in one kernel call
+  (``ModelStack``), in float64 and in float32 (the engine's default precision), exact and
+  with ``band=3``; ``f32 x`` is the float32 speed-up over float64 in the same run.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from shapetree.matching import (  # noqa: E402
     prepare_target,
     reference_match_cost,
 )
+from shapetree.matching._batch import ModelStack  # noqa: E402
 from shapetree.tree import build_shape_tree  # noqa: E402
 
 
@@ -114,6 +118,20 @@ def main(argv: list[str] | None = None) -> int:
                 "cost_rel_diff_mean": float(rel.mean()),
                 "cost_rel_diff_max": float(rel.max()),
             }
+        for dt, tag in ((np.float64, "f64"), (np.float32, "f32")):
+            for band in (None, 3.0):
+                mp = MatchParams(band=band)
+                stack = ModelStack(models, n, mp, dtype=dt)
+                tgs = [prepare_target(b, dtype=dt) for _, b in pairs]
+
+                def run_stack(stack=stack, tgs=tgs):
+                    for tg in tgs:
+                        stack.costs(tg)
+
+                key = f"stack_{tag}" + ("" if band is None else f"_band{band:g}") + "_ms"
+                row[key] = 1e3 * timeit(run_stack, reps) / len(pairs) ** 2
+        row["f32_speedup"] = row["stack_f64_ms"] / row["stack_f32_ms"]
+        row["f32_band3_speedup"] = row["stack_f64_band3_ms"] / row["stack_f32_band3_ms"]
         if n in args.reference_sizes:
             a, b = pairs[0]
             tree = build_shape_tree(a, closed=True)
@@ -134,6 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     hdr = (
         f"{'n=m':>5} {'exact ms':>9} {'match/s':>8} {'+corr ms':>9} {'prep ms':>8} "
         + " ".join(f"{'band' + format(b, 'g') + ' x':>9} {'Δcost':>7}" for b in args.bands)
+        + f" {'stack32':>8} {'f32 x':>6} {'st32 b3':>8} {'f32 x':>6}"
         + f" {'ref ms':>9} {'ref/kern':>9}"
     )
     print("Closed-curve matching, one shape-tree, one core (medians)")
@@ -146,6 +165,10 @@ def main(argv: list[str] | None = None) -> int:
         for b in args.bands:
             d = r[f"band{b:g}"]
             line += f"{d['speedup_vs_exact']:>9.2f} {100 * d['cost_rel_diff_mean']:>6.2f}% "
+        line += (
+            f"{r['stack_f32_ms']:>8.3f} {r['f32_speedup']:>6.2f} "
+            f"{r['stack_f32_band3_ms']:>8.3f} {r['f32_band3_speedup']:>6.2f} "
+        )
         if "reference_ms" in r:
             line += f"{r['reference_ms']:>9.0f} {r['reference_over_kernel']:>9.0f}"
         print(line)
