@@ -223,15 +223,15 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "band": 4.0,
         "length_power": 1.0,
         "smooth": None,
-        "phases": 1,
+        "phases": 4,  # targets at 0, 1/4, 2/4, 3/4 of a spacing: 970 of 990 (phases 1: 965)
         "target_factor": 1,
         "segment_weight": 1.0,
         "symmetrize": "none",
     },
     "mpeg7": {
-        "n_points": 40,
+        "n_points": 64,
         "weight": 1.0,
-        "occlusion": 1.0,
+        "occlusion": 2.0,
         "n_trees": 3,
         "split": "half",
         "mirror": True,
@@ -248,14 +248,15 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "weight": 1.0,
         "occlusion": None,
         "n_trees": 1,
-        "split": "best",
+        "split": "half",
         "mirror": True,
         "band": 2.0,
-        "length_power": 2.0,  # top-level (global) deformations weigh more; see swedish_leaf.json
+        "length_power": 1.5,  # coarse (global) nodes weigh a little more; see swedish_leaf.json
         "smooth": None,
         "phases": 1,
-        "target_factor": 1,
-        "segment_weight": 1.0,
+        # targets sampled twice as densely, target detail between model points free
+        "target_factor": 2,
+        "segment_weight": 0.0,
         "symmetrize": "none",
     },
 }
