@@ -238,7 +238,7 @@ DATASET_DEFAULTS: dict[str, dict[str, Any]] = {
         "band": 3.0,
         "length_power": 1.0,
         "smooth": None,
-        "phases": 1,
+        "phases": 2,  # targets also at half a spacing: 87.76% (phases 1: 87.49%)
         "target_factor": 1,
         "segment_weight": 1.0,
         "symmetrize": "none",
