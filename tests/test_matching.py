@@ -273,3 +273,25 @@ def test_bad_input_is_reported():
         match(np.array([[0.0, 0.0], [1.0, 0.0]]), a)
     with pytest.raises(ShapeTreeError, match=r"\(n, 2\)"):
         match(np.zeros((5, 3)), a)
+
+
+def test_float32_tables_agree_and_bad_dtypes_are_named():
+    """float32 tables (the retrieval engine's precision) give the float64 costs to ~1e-6;
+    an unsupported dtype, or a target of the wrong precision for a ModelStack, is refused."""
+    from shapetree.matching._batch import ModelStack
+
+    rng = np.random.default_rng(4)
+    a, b, c = (blob(24, rng) for _ in range(3))
+    models = [prepare_model(x, n_trees=2) for x in (a, c)]
+    t64 = prepare_target(b)
+    t32 = prepare_target(b, dtype=np.float32)
+    assert t32.tri.dtype == np.float32 and t32.g.dtype == np.float32
+    exact = [match_cost(mod, t64) for mod in models]
+    np.testing.assert_allclose([match_cost(mod, t32) for mod in models], exact, rtol=1e-5)
+    stack = ModelStack(models, 24, dtype=np.float32)
+    np.testing.assert_allclose(stack.costs(t32), exact, rtol=1e-5)
+    assert match_cost(models[0], prepare_target(a, dtype=np.float32)) < 1e-6  # self-match
+    with pytest.raises(ShapeTreeError, match="runs in float32"):
+        stack.costs(t64)
+    with pytest.raises(ShapeTreeError, match="dtype must be float64 or float32"):
+        prepare_target(b, dtype=np.int32)

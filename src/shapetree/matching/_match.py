@@ -244,10 +244,10 @@ class _Traceback:
             left = self.tab[lt, ks, ss]
             right = self.tab[rt, length - ks, ss + ks]
             tri = self.t.tri[length, ks, :, ss]
-            wr = td.a1[v] * tri[:, 1] - td.a2r[v] * tri[:, 0]
-            wi = td.a1[v] * tri[:, 2] - td.a2i[v] * tri[:, 0]
-            dif = wr**2 + wi**2
-            tot = left + right + td.lam[v] * dif
+            # λ dif, evaluated as the kernel does (sqrt(λ)-scaled model coordinates)
+            wr = td.ra1[v] * tri[:, 1] - td.ra2r[v] * tri[:, 0]
+            wi = td.ra1[v] * tri[:, 2] - td.ra2i[v] * tri[:, 0]
+            tot = left + right + (wr**2 + wi**2)
             if tot.size == 0:  # no admissible split: only a replacement can cover (s, L)
                 best, k = np.inf, -1
             else:

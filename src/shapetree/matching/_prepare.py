@@ -126,9 +126,6 @@ class TreeData:
     left_tab: np.ndarray
     right_tab: np.ndarray
     lam: np.ndarray
-    a1: np.ndarray
-    a2r: np.ndarray
-    a2i: np.ndarray
     ra1: np.ndarray
     ra2r: np.ndarray
     ra2i: np.ndarray
@@ -202,9 +199,6 @@ def tree_data(
         left_tab=left_tab.astype(np.int64),
         right_tab=right_tab.astype(np.int64),
         lam=np.ascontiguousarray(lam),
-        a1=np.ascontiguousarray(a1),
-        a2r=np.ascontiguousarray(a2.real),
-        a2i=np.ascontiguousarray(a2.imag),
         # λ dif = |sqrt(λ) (a1 z2 - a2 z1)|^2 (see ._kernels)
         ra1=np.ascontiguousarray(np.sqrt(lam) * a1),
         ra2r=np.ascontiguousarray(np.sqrt(lam) * a2.real),
