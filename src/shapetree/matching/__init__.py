@@ -38,10 +38,11 @@ Interpretations of the paper (where its text is terse)
    a stretch factor ``r``.
 """
 
+from shapetree.matching._api import match, mirror_curve
+from shapetree.matching._config import OPTIONS, PRESETS, MatchConfig, resolve_config
 from shapetree.matching._match import (
     MatchParams,
     MatchResult,
-    match,
     match_cost,
     match_prepared,
     subcurve_table,
@@ -54,6 +55,9 @@ from shapetree.matching._reference import (
 )
 
 __all__ = [
+    "OPTIONS",
+    "PRESETS",
+    "MatchConfig",
     "MatchParams",
     "MatchResult",
     "Model",
@@ -61,10 +65,12 @@ __all__ = [
     "match",
     "match_cost",
     "match_prepared",
+    "mirror_curve",
     "prepare_model",
     "prepare_target",
     "reference_correspondence",
     "reference_match_cost",
     "reference_subcurve_table",
+    "resolve_config",
     "subcurve_table",
 ]

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
-from shapetree.curves import as_curve, point_at, resample
+from shapetree.curves import point_at
 from shapetree.matching._kernels import closed_root_min, fill_tables
 from shapetree.matching._prepare import (
     Model,
@@ -92,6 +92,13 @@ class MatchResult:
         Which of the model's shape-trees gave the best cost.
     costs : ndarray, shape (n_trees,)
         Cost with each shape-tree.
+    mirrored : bool
+        Whether the mirrored model gave the cost (:func:`match` with ``mirror``); the
+        correspondence is then still given in the indices of ``a``.
+    phase : int
+        Which target phase gave the cost (``b`` holds that sampling).
+    forward_cost, backward_cost : float
+        ψ(A, B), and ψ(B, A) when the configuration's ``symmetrize`` needed it.
     """
 
     cost: float
@@ -103,6 +110,10 @@ class MatchResult:
     replaced: list[tuple[int, int, int, int]] = field(default_factory=list)
     tree_index: int = 0
     costs: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    mirrored: bool = False
+    phase: int = 0
+    forward_cost: float = float("nan")
+    backward_cost: float | None = None
 
     def pairs(self) -> np.ndarray:
         """Matched point pairs ``(x_a, y_a, x_b, y_b)`` for every non-replaced ``A`` point."""
@@ -389,77 +400,6 @@ def match_cost(model: Model, target: Target, params: MatchParams | None = None) 
     return max(float(best), 0.0)  # a sum of difs >= 0; round-off can leave -1e-17
 
 
-def match(
-    a: ArrayLike,
-    b: ArrayLike,
-    *,
-    closed: bool = True,
-    n_points: int | None = None,
-    weight: float = 1.0,
-    occlusion: float | None = None,
-    n_trees: int = 1,
-    split: str = "half",
-    length_power: float = 1.0,
-    target_points: int | None = None,
-    segment_weight: float = 1.0,
-    band: float | None = None,
-) -> MatchResult:
-    """Deform curve ``a`` onto curve ``b`` with minimum shape-tree deformation (eq. 1).
-
-    Parameters
-    ----------
-    a, b : array_like, shapes (n, 2) and (m, 2)
-        Sample points. Closed curves without a repeated first point.
-    closed : bool
-        Open curves: endpoints map to endpoints. Closed curves: every cyclic alignment
-        of ``b`` is tried (O(n m^3)).
-    n_points : int, optional
-        Resample both curves to this many points, evenly in arc length, first.
-    weight : float
-        λ of a node is ``weight`` times its subcurve's length relative to ``a``'s length.
-    occlusion : float, optional
-        Replacement cost factor κ (see :class:`MatchParams`).
-    n_trees : int
-        Number of shape-trees of ``a`` tried (best taken).
-    split : {"half", "best"}
-        Midpoint rule.
-    length_power : float
-        λ grows as the subcurve's relative length to this power (paper: 1).
-    target_points : int, optional
-        Resample ``b`` to this many points instead (a target sampled more densely than
-        the model, e.g. ``2 * n_points``, lets ``a``'s points land between ``b``'s).
-    segment_weight : float
-        Factor on the base case "segment of ``a`` vs a subcurve of ``b``" (paper: 1; see
-        :class:`MatchParams`).
-    band : float, optional
-        Pruned matching (see :class:`MatchParams`).
-
-    Returns
-    -------
-    MatchResult
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
-    >>> circle = np.c_[np.cos(t), np.sin(t)]
-    >>> round(match(circle, 3 * circle[::-1][::-1]).cost, 9)
-    0.0
-    """
-    a = as_curve(a, closed=closed, name="curve A")
-    b = as_curve(b, closed=closed, name="curve B")
-    params = MatchParams(occlusion=occlusion, band=band, segment_weight=segment_weight)
-    if n_points is not None:
-        a = resample(a, n_points, closed=closed)
-    if target_points is not None or n_points is not None:
-        b = resample(b, target_points or n_points, closed=closed)
-    model = prepare_model(
-        a, closed=closed, n_trees=n_trees, split=split, weight=weight, length_power=length_power
-    )
-    target = prepare_target(b, closed=closed, length_power=length_power)
-    return match_prepared(model, target, params)
-
-
 def subcurve_table(
     contour: ArrayLike | ShapeTree,
     target: Target,
@@ -512,7 +452,6 @@ __all__ = [
     "MatchResult",
     "Model",
     "Target",
-    "match",
     "match_cost",
     "match_prepared",
     "prepare_model",

@@ -1,0 +1,371 @@
+"""The matcher configuration: one validated, immutable object for every entry point.
+
+:class:`MatchConfig` holds every option that changes the cost of a pair of shapes, with one
+set of documented defaults (the ``general`` preset). :func:`shapetree.matching.match`,
+:func:`shapetree.retrieval.distance_matrix`, :func:`shapetree.retrieval.directed_costs`,
+:func:`shapetree.retrieval.evaluate` and the ``shapetree match / search / distances /
+evaluate`` commands all take it, so the same pair costs the same wherever it is asked.
+:data:`OPTIONS` describes each field once (type, help, choices); the command-line flags are
+generated from it. :data:`PRESETS` names the configurations the project ships.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from shapetree._errors import ShapeTreeError
+
+#: Table precisions of the kernel (``MatchConfig.precision``).
+PRECISIONS = {"float32": np.float32, "float64": np.float64}
+
+#: Accepted ``symmetrize`` values.
+SYMMETRIZE = ("none", "min", "mean", "max", "reverse")
+
+#: Midpoint rules of the shape-trees.
+SPLIT_RULES = ("half", "best")
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int | np.integer) and not isinstance(v, bool)
+
+
+def _is_num(v: Any) -> bool:
+    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool)
+
+
+@dataclass(frozen=True)
+class MatchConfig:
+    """Every option that changes the cost ψ of a pair of shapes.
+
+    Build one directly, from a preset (``MatchConfig.preset("paper")``), or from another
+    with :meth:`replace`. It is validated once, on construction; a bad value raises
+    :class:`shapetree.ShapeTreeError` naming the option.
+
+    Attributes
+    ----------
+    n_points : int or None
+        Both curves are resampled to this many points, evenly in arc length, before
+        matching (``None``: use the points as given). Time grows as about ``n^4``.
+    weight : float
+        λ factor of the model's nodes: λ of a node is ``weight * (|A'| / |A|) **
+        length_power`` (only matters relative to ``occlusion``).
+    length_power : float
+        λ grows as the relative length of the deformed subcurve to this power (the
+        paper: 1, "a weighting proportional to the length of A").
+    occlusion : float or None
+        Replacement factor κ (§3, occlusion): every ψ(A', B') is bounded above by
+        ``κ λ_{A'} (|A'| + |B'|)`` (lengths relative to the whole curves). ``None``: no
+        replacement.
+    n_trees : int
+        Shape-trees of the model tried (different start points); the best is kept (§3:
+        "we usually compute matchings using 2 to 4 different shape-trees").
+    split : {"half", "best"}
+        Midpoint rule of the shape-trees (§2).
+    mirror : bool
+        Mirror invariance: also deform the mirrored model and keep the cheaper cost.
+    band : float or None
+        Pruned matching (not in the paper): a model subcurve may stretch by at most this
+        factor relative to the ratio of the two sample counts. ``None``: exact matching
+        over all target subcurves (slower by 10–30×).
+    phases : int
+        Target phases (not in the paper; closed curves): the target is also resampled
+        ``p / phases`` of a sample spacing further along (``p = 1 .. phases - 1``) and the
+        cheapest matching is kept, so a shape costs almost nothing against a rotated or
+        rescaled copy of itself. Needs ``n_points``.
+    target_factor : int
+        The target is resampled to ``target_factor * n_points`` points, the model to
+        ``n_points`` (not in the paper, which samples both alike). Needs ``n_points``.
+    segment_weight : float
+        Factor on the base case "model segment vs a target subcurve of several segments"
+        (the paper: 1). With ``target_factor`` 2 and ``segment_weight`` 0 the model's
+        points land anywhere along the target and only the model's own triangles count.
+    smooth : float or None
+        Gaussian smoothing of each curve before resampling, as a fraction of its length
+        (e.g. 0.005 removes pixel staircases). ``None``: none.
+    symmetrize : {"none", "min", "mean", "max", "reverse"}
+        How the two directed costs are combined into the distance of a pair:
+        ``"none"`` is ψ(A, B) (A deformed onto B), ``"reverse"`` ψ(B, A), the others
+        the min / mean / max of both (twice the work).
+    precision : {"float32", "float64"}
+        Precision of the dynamic-programming tables: float32 runs about twice as fast;
+        costs then differ from float64 by about 1e-6 relative, far below the gaps that
+        rank shapes.
+    """
+
+    n_points: int | None = 50
+    weight: float = 1.0
+    length_power: float = 1.0
+    occlusion: float | None = None
+    n_trees: int = 3
+    split: str = "half"
+    mirror: bool = True
+    band: float | None = 3.0
+    phases: int = 4
+    target_factor: int = 1
+    segment_weight: float = 1.0
+    smooth: float | None = None
+    symmetrize: str = "none"
+    precision: str = "float32"
+
+    def __post_init__(self) -> None:
+        n = self.n_points
+        if n is not None and not (_is_int(n) and n >= 4):
+            raise ShapeTreeError(f"n_points must be an integer >= 4 or None, got {n!r}")
+        if not (_is_num(self.weight) and np.isfinite(self.weight) and self.weight > 0):
+            raise ShapeTreeError(f"weight must be a positive number, got {self.weight!r}")
+        lp = self.length_power
+        if not (_is_num(lp) and np.isfinite(lp) and lp >= 0):
+            raise ShapeTreeError(f"length_power must be a number >= 0, got {lp!r}")
+        occ = self.occlusion
+        if occ is not None and not (_is_num(occ) and np.isfinite(occ) and occ > 0):
+            raise ShapeTreeError(f"occlusion must be a positive number or None, got {occ!r}")
+        if not (_is_int(self.n_trees) and self.n_trees >= 1):
+            raise ShapeTreeError(f"n_trees must be an integer >= 1, got {self.n_trees!r}")
+        if self.split not in SPLIT_RULES:
+            raise ShapeTreeError(f"split must be one of {SPLIT_RULES}, got {self.split!r}")
+        if not isinstance(self.mirror, bool | np.bool_):
+            raise ShapeTreeError(f"mirror must be True or False, got {self.mirror!r}")
+        b = self.band
+        if b is not None and not (_is_num(b) and np.isfinite(b) and b >= 1):
+            raise ShapeTreeError(f"band must be a number >= 1 or None, got {b!r}")
+        if not (_is_int(self.phases) and self.phases >= 1):
+            raise ShapeTreeError(f"phases must be an integer >= 1, got {self.phases!r}")
+        tf = self.target_factor
+        if not (_is_int(tf) and tf >= 1):
+            raise ShapeTreeError(f"target_factor must be an integer >= 1, got {tf!r}")
+        if n is None and (self.phases > 1 or tf > 1):
+            raise ShapeTreeError(
+                "phases > 1 and target_factor > 1 resample the target: they need n_points"
+            )
+        sw = self.segment_weight
+        if not (_is_num(sw) and np.isfinite(sw) and sw >= 0):
+            raise ShapeTreeError(f"segment_weight must be a number >= 0, got {sw!r}")
+        s = self.smooth
+        if s is not None and not (_is_num(s) and np.isfinite(s) and 0 <= s < 0.5):
+            raise ShapeTreeError(f"smooth must be a number in [0, 0.5) or None, got {s!r}")
+        if self.symmetrize not in SYMMETRIZE:
+            raise ShapeTreeError(f"symmetrize must be one of {SYMMETRIZE}, got {self.symmetrize!r}")
+        if self.precision not in PRECISIONS:
+            raise ShapeTreeError(
+                f"precision must be one of {tuple(PRECISIONS)}, got {self.precision!r}"
+            )
+        # canonical types, so equal configurations hash and serialise alike
+        fix = object.__setattr__
+        fix(self, "n_points", None if n is None else int(n))
+        fix(self, "weight", float(self.weight))
+        fix(self, "length_power", float(lp))
+        fix(self, "occlusion", None if occ is None else float(occ))
+        fix(self, "n_trees", int(self.n_trees))
+        fix(self, "mirror", bool(self.mirror))
+        fix(self, "band", None if b is None else float(b))
+        fix(self, "phases", int(self.phases))
+        fix(self, "target_factor", int(tf))
+        fix(self, "segment_weight", float(sw))
+        fix(self, "smooth", None if not s else float(s))
+
+    # ------------------------------------------------------------ construction
+
+    @classmethod
+    def preset(cls, name: str, **changes: Any) -> MatchConfig:
+        """The named preset (see :data:`PRESETS`), optionally with some options changed.
+
+        Parameters
+        ----------
+        name : str
+            One of :data:`PRESETS`.
+        **changes
+            Options to change (names of :class:`MatchConfig` fields).
+        """
+        if name not in PRESETS:
+            raise ShapeTreeError(f"unknown preset {name!r}; choose one of {tuple(PRESETS)}")
+        return PRESETS[name].replace(**changes)
+
+    def replace(self, **changes: Any) -> MatchConfig:
+        """A copy with some options changed (validated again)."""
+        unknown = set(changes) - set(OPTIONS)
+        if unknown:
+            raise ShapeTreeError(
+                f"unknown matching option(s) {sorted(unknown)}; the options are "
+                f"{', '.join(OPTIONS)}"
+            )
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Every option, JSON-ready."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> MatchConfig:
+        """Inverse of :meth:`as_dict` (unknown keys are refused)."""
+        return cls().replace(**data)
+
+    # ------------------------------------------------------------ derived values
+
+    @property
+    def dtype(self) -> np.dtype:
+        """NumPy dtype of the kernel's tables."""
+        return np.dtype(PRECISIONS[self.precision])
+
+    @property
+    def target_points(self) -> int | None:
+        """Points per target curve (``n_points * target_factor``)."""
+        return None if self.n_points is None else self.n_points * self.target_factor
+
+    @property
+    def n_pass(self) -> int:
+        """1, or 2 with ``mirror`` (plain model, mirrored model)."""
+        return 2 if self.mirror else 1
+
+    @property
+    def matchings_per_pair(self) -> int:
+        """Kernel runs per ordered pair (trees x mirror x phases x directions)."""
+        both = 1 if self.symmetrize in ("none", "reverse") else 2
+        return self.n_trees * self.n_pass * self.phases * both
+
+    def describe(self) -> str:
+        """One line naming every option that differs from the ``general`` preset."""
+        base = PRESETS.get("general", MatchConfig())
+        diff = [f"{k}={v}" for k, v in self.as_dict().items() if getattr(base, k) != v]
+        return ", ".join(diff) if diff else "general preset"
+
+
+def resolve_config(config: MatchConfig | str | None = None, **changes: Any) -> MatchConfig:
+    """The configuration an entry point uses.
+
+    Parameters
+    ----------
+    config : MatchConfig, str or None
+        A configuration, a preset name, or ``None`` for the ``general`` preset.
+    **changes
+        Options to change on top of it (``None`` values are kept as ``None``, which means
+        "off" for ``occlusion``, ``band``, ``smooth`` and "as given" for ``n_points``).
+
+    Returns
+    -------
+    MatchConfig
+    """
+    if config is None:
+        base = PRESETS["general"]
+    elif isinstance(config, str):
+        base = MatchConfig.preset(config)
+    elif isinstance(config, MatchConfig):
+        base = config
+    else:
+        raise ShapeTreeError(
+            f"config must be a MatchConfig, a preset name or None, got {type(config).__name__}"
+        )
+    return base.replace(**changes) if changes else base
+
+
+#: One entry per option: ``{name: {"type", "help", "choices"?, "optional"?}}``. ``optional``
+#: options accept ``none`` (or ``0``) on the command line for "off". The CLI flags of
+#: ``match``, ``search``, ``distances`` and ``evaluate`` are generated from this table.
+OPTIONS: dict[str, dict[str, Any]] = {
+    "n_points": {
+        "type": int,
+        "optional": True,
+        "help": "resample both curves to N points, evenly in arc length (none: as given; "
+        "time grows as N^4)",
+    },
+    "weight": {"type": float, "help": "lambda factor of the shape-tree nodes"},
+    "length_power": {
+        "type": float,
+        "help": "lambda grows as (relative subcurve length)^P (the paper: 1)",
+    },
+    "occlusion": {
+        "type": float,
+        "optional": True,
+        "help": "replacement cost factor kappa for missing or extra parts (none: off)",
+    },
+    "n_trees": {
+        "type": int,
+        "help": "shape-trees of the model tried (different start points), best kept",
+    },
+    "split": {
+        "type": str,
+        "choices": list(SPLIT_RULES),
+        "help": "midpoint rule: half (the middle sample) or best (the sample whose "
+        "triangle best approximates the subcurve)",
+    },
+    "mirror": {"type": bool, "help": "also match the mirrored model and keep the cheaper cost"},
+    "band": {
+        "type": float,
+        "optional": True,
+        "help": "pruned matching: max stretch factor of a subcurve (none: exact, 10-30x slower)",
+    },
+    "phases": {
+        "type": int,
+        "help": "also match the target resampled 1/P, 2/P, ... of a sample spacing further "
+        "along and keep the cheapest (1: the paper's single sampling)",
+    },
+    "target_factor": {
+        "type": int,
+        "help": "the target gets target_factor x n_points points (1: both alike)",
+    },
+    "segment_weight": {
+        "type": float,
+        "help": "weight of the base case 'model segment vs target subcurve' (the paper: 1; "
+        "0 makes target detail finer than the model's sampling free)",
+    },
+    "smooth": {
+        "type": float,
+        "optional": True,
+        "help": "Gaussian smoothing of each curve before resampling, as a fraction of its "
+        "length (none: off)",
+    },
+    "symmetrize": {
+        "type": str,
+        "choices": list(SYMMETRIZE),
+        "help": "distance of a pair: none = psi(A onto B), reverse = psi(B onto A), or the "
+        "min / mean / max of both",
+    },
+    "precision": {
+        "type": str,
+        "choices": list(PRECISIONS),
+        "help": "precision of the matching tables (float32: about 2x faster, within about "
+        "1e-6 relative of float64)",
+    },
+}
+
+assert set(OPTIONS) == {f.name for f in dataclasses.fields(MatchConfig)}
+
+#: The presets the project ships. ``general`` is the default of every entry point; see the
+#: README ("Presets") for how each was chosen and what it scores.
+PRESETS: dict[str, MatchConfig] = {
+    # the method as the paper describes it: one sampling (50 points, the low end of the
+    # paper's "between 50 and 100"), one shape-tree, no mirror, no band, no phases,
+    # lambda proportional to length, psi(A, B) directed
+    "paper": MatchConfig(
+        n_points=50,
+        n_trees=1,
+        mirror=False,
+        band=None,
+        phases=1,
+        target_factor=1,
+        segment_weight=1.0,
+        length_power=1.0,
+        occlusion=None,
+        symmetrize="none",
+    ),
+    # tuned on the set they are scored on (benchmarks/results/<set>.json)
+    "kimia99": MatchConfig(n_points=50, n_trees=3, mirror=True, band=4.0, phases=4, occlusion=None),
+    "mpeg7": MatchConfig(n_points=64, n_trees=3, mirror=True, band=3.0, phases=2, occlusion=2.0),
+    "swedish_leaf": MatchConfig(
+        n_points=64,
+        n_trees=1,
+        mirror=True,
+        band=2.0,
+        phases=1,
+        length_power=1.5,
+        target_factor=2,
+        segment_weight=0.0,
+        occlusion=None,
+    ),
+}
+PRESETS["general"] = MatchConfig()
+
+__all__ = ["OPTIONS", "PRECISIONS", "PRESETS", "SYMMETRIZE", "MatchConfig", "resolve_config"]
