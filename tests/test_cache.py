@@ -1,0 +1,67 @@
+"""shapetree._cache: cache folder and code fingerprint."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+import shapetree
+from shapetree import _cache
+from shapetree._cache import FINGERPRINT_PACKAGES, cache_root, code_fingerprint
+
+
+def test_cache_root_env_override(monkeypatch, tmp_path):
+    monkeypatch.setenv("SHAPETREE_CACHE", str(tmp_path / "c"))
+    assert cache_root() == tmp_path / "c"
+
+
+def test_cache_root_expands_user(monkeypatch, tmp_path):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    monkeypatch.setenv("SHAPETREE_CACHE", "~/mycache")
+    assert cache_root() == tmp_path / "mycache"
+
+
+@pytest.mark.parametrize("value", [None, "", "  "])
+def test_cache_root_default(monkeypatch, tmp_path, value):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    if value is None:
+        monkeypatch.delenv("SHAPETREE_CACHE", raising=False)
+    else:
+        monkeypatch.setenv("SHAPETREE_CACHE", value)
+    assert cache_root() == tmp_path / ".cache" / "shapetree"
+
+
+def test_fingerprint_is_hex_sha256_and_deterministic():
+    fp = code_fingerprint()
+    assert re.fullmatch(r"[0-9a-f]{64}", fp)
+    assert code_fingerprint() == fp
+    src = Path(_cache.__file__).resolve().parent
+    assert _cache._fingerprint(shapetree.__version__, src) == fp  # recomputed from scratch
+
+
+def test_fingerprint_changes_with_version(monkeypatch):
+    fp = code_fingerprint()
+    monkeypatch.setattr(shapetree, "__version__", shapetree.__version__ + ".post1")
+    assert code_fingerprint() != fp
+    monkeypatch.undo()
+    assert code_fingerprint() == fp
+
+
+def test_fingerprint_changes_with_any_relevant_source(tmp_path):
+    src = Path(_cache.__file__).resolve().parent
+    for pkg in FINGERPRINT_PACKAGES:
+        shutil.copytree(src / pkg, tmp_path / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    base = _cache._fingerprint("1", tmp_path)
+    for pkg in FINGERPRINT_PACKAGES:
+        f = sorted((tmp_path / pkg).glob("*.py"))[-1]
+        original = f.read_bytes()
+        f.write_bytes(original + b"\n# edit\n")
+        assert _cache._fingerprint("1", tmp_path) != base, pkg
+        f.write_bytes(original)
+    assert _cache._fingerprint("1", tmp_path) == base
+    # a file outside the fingerprinted packages does not matter
+    (tmp_path / "unrelated.py").write_text("x = 1\n")
+    assert _cache._fingerprint("1", tmp_path) == base
