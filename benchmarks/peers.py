@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import os
 import sys
 import time
 from collections.abc import Callable
@@ -35,6 +34,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, machine, write_json  # noqa: E402
 
 from shapetree import datasets  # noqa: E402
+from shapetree._atomic import atomic_open  # noqa: E402
+from shapetree._cache import cache_root  # noqa: E402
 from shapetree.curves import resample  # noqa: E402
 from shapetree.retrieval import PAPER_TABLES, evaluate, kimia_ranks  # noqa: E402
 
@@ -136,9 +137,8 @@ def peer_matrix(
         for i, r in tqdm(pool.imap_unordered(_row, todo), total=len(todo), desc=peer):
             D[i] = r
             if folder is not None:
-                tmp = folder / f".row_{i:04d}.{os.getpid()}.npy"
-                np.save(tmp, r)
-                os.replace(tmp, folder / f"row_{i:04d}.npy")
+                with atomic_open(folder / f"row_{i:04d}.npy") as fh:
+                    np.save(fh, r)
     return D, time.perf_counter() - t0, len(todo) * (N - 1)
 
 
@@ -151,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sc-points", type=int, default=100)
     ap.add_argument("--fdasrsf-points", type=int, default=40)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--cache-dir", default=str(Path.home() / ".cache" / "shapetree" / "peers"))
+    ap.add_argument("--cache-dir", default=str(cache_root() / "peers"))
     ap.add_argument("--no-shapetree", action="store_true", help="skip the shapetree row")
     ap.add_argument("--json", default=str(RESULTS / "peers_kimia99.json"))
     args = ap.parse_args(argv)

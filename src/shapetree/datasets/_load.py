@@ -7,7 +7,6 @@ import hashlib
 import json
 import os
 import re
-import tempfile
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -15,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from shapetree._atomic import atomic_open
 from shapetree._errors import DatasetError, ShapeTreeError
 from shapetree.datasets._registry import (
     REGISTRY,
@@ -354,11 +354,8 @@ def _read_cache(path: Path, names: Sequence[str]) -> list[np.ndarray] | None:
 def _write_cache(
     path: Path, names: Sequence[str], labels: Sequence[str], curves: Sequence[np.ndarray]
 ) -> None:
-    tmp: str | None = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
+        with atomic_open(path, "wb") as f:
             np.savez(
                 f,
                 names=np.array(names, dtype=str),
@@ -366,16 +363,8 @@ def _write_cache(
                 counts=np.array([len(c) for c in curves], dtype=np.int64),
                 points=np.concatenate(curves, axis=0),
             )
-        os.replace(tmp, path)
-        tmp = None
     except OSError as e:
         warnings.warn(f"could not write curve cache {path}: {e}", stacklevel=3)
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
 
 
 def load(
@@ -432,8 +421,8 @@ def load(
     holding ``names``, ``labels``, ``counts`` (points per curve) and ``points``
     (all curves concatenated). ``key`` hashes the selected files' names, labels,
     sizes and modification times, the images folder, ``n_points`` and the
-    orientation, so a changed file invalidates the cache. Files are written to a
-    temporary file and moved into place with :func:`os.replace`.
+    orientation, so a changed file invalidates the cache. Files are written
+    atomically (:func:`shapetree._atomic.atomic_open`).
     """
     if n_points is not None:
         if isinstance(n_points, bool) or not isinstance(n_points, int | np.integer):

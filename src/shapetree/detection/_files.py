@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from shapetree._atomic import atomic_write_bytes
 
 from ._detect import Detection, DetectionRun, DetectParams, detect_detailed
 from ._edges import load_image
@@ -20,33 +21,7 @@ __all__ = [
     "plot_detection",
     "plot_detection_run",
     "detect_to_files",
-    "atomic_write_bytes",
 ]
-
-
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder + ``os.replace``).
-
-    Parameters
-    ----------
-    path : path-like
-        Destination; its folder is created if needed.
-    data : bytes
-    """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual file mode
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def plot_contours(
@@ -251,7 +226,7 @@ def detect_to_files(
             "n_contours": len(run.contours),
             "detections": [d.to_json() for d in run.detections],
         }
-        atomic_write_bytes(out_json, json.dumps(doc, indent=1).encode())
+        atomic_write_bytes(out_json, json.dumps(doc, indent=1).encode(), fsync=False)
     if out_png is not None:
         import io
 
@@ -263,5 +238,5 @@ def detect_to_files(
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=90)
         plt.close(fig)
-        atomic_write_bytes(out_png, buf.getvalue())
+        atomic_write_bytes(out_png, buf.getvalue(), fsync=False)
     return run.detections

@@ -61,7 +61,7 @@ def check_figure_path(path: str | os.PathLike[str]) -> Path:
 
 
 def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: float = 150) -> Path:
-    """Write a figure atomically: to a temporary file next to ``path``, then ``os.replace``.
+    """Write a figure atomically (:func:`shapetree._atomic.atomic_open`).
 
     A reader never sees a half-written picture, and on any error the temporary file is
     removed and an existing file at ``path`` is left untouched. Missing parent folders are
@@ -90,8 +90,6 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: float = 150) 
     p = check_figure_path(path)
     fmt = p.suffix.lower().lstrip(".")
     fmt = {"jpg": "jpeg", "tif": "tiff"}.get(fmt, fmt)
-    parent = p.parent if str(p.parent) else Path(".")
-    parent.mkdir(parents=True, exist_ok=True)
-    with atomic_open(p, "wb") as fh:
+    with atomic_open(p, "wb") as fh:  # creates missing folders
         fig.savefig(fh, format=fmt, dpi=dpi, facecolor="white")
     return p
