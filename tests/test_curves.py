@@ -200,6 +200,37 @@ def test_resample_accepts_numpy_integer():
     assert resample(SQUARE, np.int64(12), closed=True).shape == (12, 2)
 
 
+def test_resample_open_segment_and_two_point_outputs() -> None:
+    seg = np.array([[0.0, 0.0], [3.0, 4.0]])
+    np.testing.assert_allclose(
+        resample(seg, 6, closed=False), np.linspace(0, 1, 6)[:, None] * seg[1]
+    )
+    np.testing.assert_array_equal(resample(seg, 2, closed=False), seg)
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [1.0, 2.0], [4.0, 2.0]])
+    np.testing.assert_array_equal(resample(line, 2, closed=False), line[[0, -1]])
+    with pytest.raises(CurveError, match="n must be an integer >= 2 for an open curve"):
+        resample(line, 1, closed=False)
+    with pytest.raises(CurveError, match="n must be an integer >= 3 for a closed curve"):
+        resample(line, 2, closed=True)
+    with pytest.raises(CurveError, match="fewer than 3 distinct"):
+        resample(seg, 5, closed=True)  # a closed curve still needs 3 points
+
+
+def test_resample_open_matches_linear_interpolation_in_arclength():
+    # the open-curve resampling detection uses (it replaced detection.resample_polyline)
+    rng = np.random.default_rng(3)
+    for k in (2, 3, 7, 40):
+        pts = np.cumsum(rng.normal(size=(k, 2)), axis=0)
+        pts = np.repeat(pts, rng.integers(1, 3, size=k), axis=0)  # repeated points are kept
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        for n in (2, 3, 11, 100):
+            t = np.linspace(0.0, cum[-1], n)
+            ref = np.c_[np.interp(t, cum, pts[:, 0]), np.interp(t, cum, pts[:, 1])]
+            out = resample(pts, n, closed=False)
+            np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
+            np.testing.assert_array_equal(out[[0, -1]], pts[[0, -1]])
+
+
 # ---------------------------------------------------------------- load_points
 
 

@@ -19,9 +19,12 @@ def resample(points: ArrayLike, n: int, *, closed: bool, phase: float = 0.0) -> 
     Parameters
     ----------
     points : array_like, shape (m, 2)
-        The ``(x, y)`` points; validated with :func:`as_curve` first.
+        The ``(x, y)`` points (or any other form :func:`as_curve` accepts); validated with
+        :func:`as_curve` first. An open curve needs 2 distinct points (a straight segment is
+        a valid open polyline), a closed one 3.
     n : int
-        Number of output points, at least 3.
+        Number of output points: at least 3 for a closed curve, at least 2 for an open one
+        (its two ends).
     closed : bool
         Open curve: the first and last points are kept and the ``n - 1`` gaps along the curve are
         equal (``length / (n - 1)``). Closed curve: the output starts at the first point and the
@@ -41,10 +44,13 @@ def resample(points: ArrayLike, n: int, *, closed: bool, phase: float = 0.0) -> 
     Raises
     ------
     CurveError
-        If ``n`` is not an integer >= 3, or the curve is invalid (see :func:`as_curve`).
+        If ``n`` is not an integer >= 3 (closed) or >= 2 (open), or the curve is invalid (see
+        :func:`as_curve`).
     """
-    if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 3:
-        raise CurveError(f"resample: n must be an integer >= 3, got {n!r}")
+    n_min = 3 if closed else 2
+    if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < n_min:
+        what = "a closed" if closed else "an open"
+        raise CurveError(f"resample: n must be an integer >= {n_min} for {what} curve, got {n!r}")
     n = int(n)
     if isinstance(phase, bool) or not isinstance(phase, numbers.Real):
         raise CurveError(f"resample: phase must be a number, got {phase!r}")
@@ -55,7 +61,7 @@ def resample(points: ArrayLike, n: int, *, closed: bool, phase: float = 0.0) -> 
         raise CurveError(
             "resample: phase applies to closed curves only (open ones keep their ends)"
         )
-    arr = as_curve(points, closed=closed)
+    arr = as_curve(points, closed=closed, min_points=3 if closed else 2)
     if closed:
         arr = np.vstack([arr, arr[:1]])
     seg = np.hypot(*np.diff(arr, axis=0).T)

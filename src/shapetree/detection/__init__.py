@@ -6,7 +6,7 @@ tables of §3 (:func:`contour_tables`), and the stitching DP with gaps
 (:func:`detect`).
 """
 
-from shapetree.detection._contours import resample_polyline, trace_contours
+from shapetree.detection._contours import trace_contours
 from shapetree.detection._detect import (
     Detection,
     DetectionRun,
@@ -65,6 +65,5 @@ __all__ = [
     "outline_dif",
     "outline_from_image",
     "outline_strokes",
-    "resample_polyline",
     "trace_contours",
 ]

@@ -34,8 +34,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
 from shapetree._errors import ImageError, ShapeTreeError
+from shapetree.curves import resample
 
-__all__ = ["trace_contours", "resample_polyline", "polyline_length", "TracedContour"]
+__all__ = ["trace_contours", "polyline_length", "TracedContour"]
 
 # 8-neighbourhood in circular order: N, NE, E, SE, S, SW, W, NW  (dr, dc)
 _CIRC = ((-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1), (-1, -1))
@@ -72,29 +73,6 @@ def polyline_length(points: NDArray[np.float64]) -> float:
     if len(points) < 2:
         return 0.0
     return float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
-
-
-def resample_polyline(points: NDArray[np.float64], n: int) -> NDArray[np.float64]:
-    """Resample an open polyline to ``n`` points uniformly spaced in arclength.
-
-    Parameters
-    ----------
-    points : ndarray, shape (k, 2)
-        Open polyline, ``k >= 2``.
-    n : int
-        Number of output points, ``n >= 2``; both ends are kept.
-
-    Returns
-    -------
-    ndarray, shape (n, 2), float64
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
-    if cum[-1] <= 0:
-        return np.repeat(pts[:1], n, axis=0)
-    t = np.linspace(0.0, cum[-1], n)
-    return np.column_stack([np.interp(t, cum, pts[:, 0]), np.interp(t, cum, pts[:, 1])])
 
 
 def _neighbour_tables(mask: NDArray[np.bool_]) -> tuple[NDArray, NDArray]:
@@ -257,7 +235,7 @@ def trace_contours_detailed(
         length = polyline_length(xy)
         if length < max(min_length, 1.0):
             continue
-        dense = resample_polyline(xy, max(2, int(np.ceil(length)) + 1))
+        dense = resample(xy, max(2, int(np.ceil(length)) + 1), closed=False)
         parts = [dense]
         if np.hypot(*(dense[-1] - dense[0])) < 1.5 and len(dense) >= 4:
             # a loop closed through a junction pixel: cut at the farthest point
@@ -346,5 +324,5 @@ def trace_contours(
     for t in traced:
         length = polyline_length(t.points)
         n = n_points if n_points is not None else max(2, int(round(length / spacing)) + 1)
-        out.append(resample_polyline(t.points, n))
+        out.append(resample(t.points, n, closed=False))
     return out

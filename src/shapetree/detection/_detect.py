@@ -12,9 +12,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from shapetree._errors import ImageError, ShapeTreeError
+from shapetree.curves import resample
 from shapetree.geometry import outline_dif
 
-from ._contours import TracedContour, polyline_length, resample_polyline, trace_contours_detailed
+from ._contours import TracedContour, polyline_length, trace_contours_detailed
 from ._edges import edge_map, load_edges, load_image
 from ._model import DetectionModel, load_model
 from ._stitch import complete_matches, run_stitch
@@ -463,7 +464,7 @@ def detect_detailed(
                 raise ShapeTreeError("each contour must be a finite (n, 2) array with n >= 2")
             length = polyline_length(c)
             if length > 0:
-                dense.append(resample_polyline(c, max(2, int(np.ceil(length)) + 1)))
+                dense.append(resample(c, max(2, int(np.ceil(length)) + 1), closed=False))
                 strengths.append(1.0)  # given contours count as full edge evidence
     else:
         traced: list[TracedContour] = trace_contours_detailed(
@@ -488,7 +489,7 @@ def detect_detailed(
     for c in dense:
         n = int(round(polyline_length(c) / p.contour_spacing)) + 1
         n = int(np.clip(n, p.contour_min_points, p.contour_max_points))
-        sampled.append(resample_polyline(c, n))
+        sampled.append(resample(c, n, closed=False))
     tables = contour_tables(sampled, mdl.points)
     timings["tables"] = time.perf_counter() - t0
 
