@@ -274,3 +274,151 @@ def test_real_specks_and_inversions():
     rat = curve_from_image(DATA / "mpeg7/rat-09.png")
     rat_dark = curve_from_image(DATA / "mpeg7/rat-09.png", polarity="dark")
     np.testing.assert_array_equal(rat, rat_dark)
+
+
+# --- oversized images and decompression bombs -------------------------------------------
+
+
+def _png_header_only(path: Path, width: int, height: int) -> Path:
+    """A PNG whose IHDR claims ``width x height`` 8-bit grey pixels, with a tiny IDAT.
+
+    A few hundred bytes on disk; decoding it would need width*height bytes, so nothing may
+    decode it: the size check has to come first.
+    """
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
+    png += chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b"")
+    path.write_bytes(png)
+    return path
+
+
+@pytest.fixture
+def bomb(tmp_path: Path) -> Path:
+    """30000 x 30000 claimed (900 Mpx): over Pillow's own hard limit too."""
+    return _png_header_only(tmp_path / "bomb.png", 30000, 30000)
+
+
+@pytest.fixture
+def default_limit(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("SHAPETREE_MAX_PIXELS", raising=False)
+
+
+def _assert_one_line_refusal(msg: str, path: Path, limit: str = "64,000,000") -> None:
+    assert "\n" not in msg
+    assert str(path) in msg and limit in msg and "SHAPETREE_MAX_PIXELS" in msg
+    assert "too large" in msg
+
+
+def test_max_image_pixels_default_and_env(monkeypatch: pytest.MonkeyPatch) -> None:
+    from shapetree.curves._image import MAX_IMAGE_PIXELS, max_image_pixels
+
+    monkeypatch.delenv("SHAPETREE_MAX_PIXELS", raising=False)
+    assert max_image_pixels() == MAX_IMAGE_PIXELS == 64_000_000
+    monkeypatch.setenv("SHAPETREE_MAX_PIXELS", " 1_000 ")
+    assert max_image_pixels() == 1000
+    for bad in ("0", "-5", "lots", "1.5"):
+        monkeypatch.setenv("SHAPETREE_MAX_PIXELS", bad)
+        with pytest.raises(ImageError, match="SHAPETREE_MAX_PIXELS must be a positive integer"):
+            max_image_pixels()
+
+
+def test_bomb_is_refused_by_read_grey_and_load_curve(bomb: Path, default_limit: None) -> None:
+    from shapetree.curves._image import read_grey
+
+    for reader in (read_grey, curve_from_image, load_curve):
+        with pytest.raises(ImageError) as info:
+            reader(bomb)
+        _assert_one_line_refusal(str(info.value), bomb)
+        assert "900,000,000 pixels" in str(info.value)
+        assert info.value.__cause__ is None and info.value.__suppress_context__
+
+
+def test_over_our_limit_under_pillows_is_refused_before_decoding(
+    tmp_path: Path, default_limit: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    big = _png_header_only(tmp_path / "big.png", 9000, 8000)  # 72 Mpx: Pillow would decode it
+
+    def no_decoding(self):
+        raise AssertionError("decoded an oversized image")
+
+    monkeypatch.setattr(Image.Image, "load", no_decoding)
+    monkeypatch.setattr(Image.Image, "convert", no_decoding)
+    with pytest.raises(ImageError) as info:
+        curve_from_image(big)
+    _assert_one_line_refusal(str(info.value), big)
+    assert "9000x8000 = 72,000,000 pixels" in str(info.value)
+
+
+def test_pillow_bomb_warning_becomes_image_error(tmp_path: Path, default_limit: None) -> None:
+    import warnings
+
+    from shapetree.curves._image import read_grey
+
+    big = _png_header_only(tmp_path / "warn.png", 10000, 10000)  # over Pillow's warning level
+    with pytest.warns(Image.DecompressionBombWarning), pytest.raises(ImageError, match="too large"):
+        read_grey(big)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Image.DecompressionBombWarning)
+        with pytest.raises(ImageError) as info:
+            read_grey(big)
+    _assert_one_line_refusal(str(info.value), big)
+
+
+def test_limit_is_overridable(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from shapetree.curves._image import read_grey
+
+    p = tmp_path / "disc.png"
+    Image.fromarray(disc()).save(p)  # 100 x 80 = 8000 px
+    monkeypatch.setenv("SHAPETREE_MAX_PIXELS", "7999")
+    with pytest.raises(ImageError) as info:
+        read_grey(p)
+    _assert_one_line_refusal(str(info.value), p, limit="7,999")
+    assert "100x80 = 8,000 pixels" in str(info.value)
+    monkeypatch.setenv("SHAPETREE_MAX_PIXELS", "8000")
+    assert read_grey(p).shape == (80, 100)
+
+
+def test_limit_above_pillows_ceiling_reaches_pillow(
+    bomb: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A raised SHAPETREE_MAX_PIXELS must not be undone by Pillow's own (lower) hard limit."""
+    from shapetree.curves._image import open_image
+
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", Image.MAX_IMAGE_PIXELS)  # restored after
+    monkeypatch.setenv("SHAPETREE_MAX_PIXELS", str(30000 * 30000))
+    with open_image(bomb) as im:  # opened, not decoded
+        assert im.size == (30000, 30000)
+    monkeypatch.setenv("SHAPETREE_MAX_PIXELS", str(30000 * 30000 - 1))
+    with pytest.raises(ImageError, match="30000x30000"):
+        with open_image(bomb):
+            pass
+
+
+def test_bomb_is_refused_by_detection_loaders(bomb: Path, default_limit: None) -> None:
+    from shapetree.detection import load_edges, load_image
+
+    for reader in (load_image, load_edges):
+        with pytest.raises(ImageError) as info:
+            reader(bomb)
+        _assert_one_line_refusal(str(info.value), bomb)
+
+
+def test_cli_match_bomb_is_one_line_exit_2(
+    bomb: Path, default_limit: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from shapetree.cli import main
+
+    assert main(["match", str(bomb), str(bomb)]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("shapetree: error: ")
+    _assert_one_line_refusal(lines[0], bomb)

@@ -261,6 +261,34 @@ def test_corrupted_image_names_file(tmp_env: Path) -> None:
         ds.load("kimia99", progress=False)
 
 
+def _png_header_only(path: Path, width: int, height: int) -> None:
+    """A tiny PNG whose header claims ``width x height`` grey pixels (a decompression bomb)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
+    path.write_bytes(png + chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("size", [(30000, 30000), (9000, 8000)])
+def test_oversized_image_is_refused_in_one_line(
+    tmp_env: Path, monkeypatch: pytest.MonkeyPatch, size: tuple[int, int]
+) -> None:
+    monkeypatch.delenv("SHAPETREE_MAX_PIXELS", raising=False)
+    folder = _make_kimia_like(tmp_env)
+    _png_header_only(folder / "s1.png", *size)
+    with pytest.raises(DatasetError) as info:
+        ds.load("kimia99", progress=False)
+    msg = str(info.value)
+    assert "\n" not in msg and "s1.png" in msg and "too large" in msg
+    assert "64,000,000" in msg and "SHAPETREE_MAX_PIXELS" in msg
+
+
 def test_blank_image_names_file(tmp_env: Path) -> None:
     folder = _make_kimia_like(tmp_env)
     Image.fromarray(np.full((20, 20), 255, np.uint8)).save(folder / "s1.png")

@@ -6,7 +6,10 @@ pad -> marching squares (``skimage.measure.find_contours``) -> closed outer boun
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +22,22 @@ from skimage.measure import find_contours
 from shapetree._errors import ImageError
 from shapetree.curves._validate import as_curve, orient
 
-__all__ = ["curve_from_image", "IMAGE_EXTENSIONS", "read_grey"]
+__all__ = [
+    "curve_from_image",
+    "IMAGE_EXTENSIONS",
+    "MAX_IMAGE_PIXELS",
+    "max_image_pixels",
+    "open_image",
+    "read_grey",
+]
+
+#: Largest image, in pixels (width x height), that shapetree decodes: 64 megapixels, i.e.
+#: 8000 x 8000 (about 64 MB as 8-bit grey, 1.5 GB as the float RGB of detection). Larger
+#: files are refused with an :class:`ImageError` before any pixel is decoded, so a
+#: "decompression bomb" (a small file claiming a huge size) cannot exhaust memory. Raise
+#: it with the environment variable ``SHAPETREE_MAX_PIXELS`` (see :func:`max_image_pixels`).
+MAX_IMAGE_PIXELS = 64_000_000
+_PIXELS_ENV = "SHAPETREE_MAX_PIXELS"
 
 #: File extensions (lower case, with the dot) read as images.
 IMAGE_EXTENSIONS = frozenset(
@@ -28,6 +46,89 @@ IMAGE_EXTENSIONS = frozenset(
 _POLARITIES = ("auto", "bright", "dark")
 _EIGHT = np.ones((3, 3), dtype=bool)
 _PAD = 2
+
+
+def max_image_pixels() -> int:
+    """The image size limit, in pixels: ``$SHAPETREE_MAX_PIXELS``, else :data:`MAX_IMAGE_PIXELS`.
+
+    Raises
+    ------
+    ImageError
+        If ``SHAPETREE_MAX_PIXELS`` is set but is not a positive integer.
+    """
+    env = os.environ.get(_PIXELS_ENV, "").strip()
+    if not env:
+        return MAX_IMAGE_PIXELS
+    try:
+        value = int(env)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ImageError(f"{_PIXELS_ENV} must be a positive integer (pixels), got {env!r}")
+    return value
+
+
+def _too_large(name: str, pixels: int, limit: int, size: tuple[int, int] | None = None) -> str:
+    what = f"{size[0]}x{size[1]} = {pixels:,} pixels" if size else f"{pixels:,} pixels"
+    return (
+        f"{name}: image too large: {what}, over the limit of {limit:,} pixels "
+        f"(a guard against decompression bombs; set {_PIXELS_ENV} to raise it)"
+    )
+
+
+def _allow_in_pillow(limit: int) -> None:
+    """Let Pillow's own bomb guard accept what ``limit`` accepts (only ever raises it).
+
+    Pillow refuses images over ``2 * Image.MAX_IMAGE_PIXELS`` (about 179 megapixels) on
+    its own; a larger ``SHAPETREE_MAX_PIXELS`` would have no effect without this. The
+    default limit is below Pillow's, so by default Pillow's setting is left as it is.
+    """
+    current = Image.MAX_IMAGE_PIXELS
+    if current is not None and limit > 2 * current:
+        Image.MAX_IMAGE_PIXELS = limit
+
+
+@contextlib.contextmanager
+def open_image(path: str | os.PathLike, name: str | None = None) -> Iterator[Image.Image]:
+    """``PIL.Image.open`` with shapetree's size limit, checked before any pixel is decoded.
+
+    Every image file shapetree reads goes through this. The image's header size is
+    checked against :func:`max_image_pixels` right after opening, and Pillow's own
+    ``DecompressionBombError`` (and ``DecompressionBombWarning``, where warnings are
+    turned into errors) become the same one-line :class:`ImageError`. Other failures
+    (missing file, unknown format: ``FileNotFoundError``, ``UnidentifiedImageError``,
+    ``OSError``) propagate unchanged for the caller to word.
+
+    Parameters
+    ----------
+    path : path-like
+    name : str, optional
+        What to call the file in the message (default: ``path``).
+
+    Yields
+    ------
+    PIL.Image.Image
+        The opened, not yet decoded image; closed when the block ends.
+
+    Raises
+    ------
+    ImageError
+        The image has more than :func:`max_image_pixels` pixels.
+    """
+    name = name or str(path)
+    limit = max_image_pixels()
+    _allow_in_pillow(limit)
+    try:
+        im = Image.open(path)
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
+        m = re.search(r"\((\d+) pixels\)", str(exc))
+        pixels = int(m.group(1)) if m else limit + 1
+        raise ImageError(_too_large(name, pixels, limit)) from None
+    with im:
+        w, h = im.size
+        if w * h > limit:
+            raise ImageError(_too_large(name, w * h, limit, (w, h)))
+        yield im
 
 
 def read_grey(image: str | os.PathLike | ArrayLike, name: str | None = None) -> np.ndarray:
@@ -47,7 +148,8 @@ def read_grey(image: str | os.PathLike | ArrayLike, name: str | None = None) -> 
     Raises
     ------
     ImageError
-        If the file is missing or unreadable, or the array is empty or has an unusable shape.
+        If the file is missing or unreadable, larger than :func:`max_image_pixels`, or the
+        array is empty or has an unusable shape.
     """
     if isinstance(image, str | os.PathLike):
         path = Path(image)
@@ -57,12 +159,14 @@ def read_grey(image: str | os.PathLike | ArrayLike, name: str | None = None) -> 
         if not path.is_file():
             raise ImageError(f"{name}: not a file")
         try:
-            with Image.open(path) as im:
+            with open_image(path, name) as im:
                 im.load()
                 if im.mode in ("I", "F") or im.mode.startswith("I;16"):
                     arr = np.asarray(im).astype(np.float64)
                 else:
                     arr = np.asarray(im.convert("L"))
+        except ImageError:
+            raise
         except (UnidentifiedImageError, OSError, ValueError) as exc:
             raise ImageError(f"{name}: unreadable image file ({exc})") from None
         if arr.size == 0:

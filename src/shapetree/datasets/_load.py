@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from shapetree._atomic import atomic_open
-from shapetree._errors import DatasetError, ShapeTreeError
+from shapetree._errors import DatasetError, ImageError, ShapeTreeError
 from shapetree.datasets._registry import (
     REGISTRY,
     DatasetSpec,
@@ -278,13 +278,15 @@ def load_labels(
 
 
 def _read_gray(path: Path) -> np.ndarray:
-    from PIL import Image
+    from shapetree.curves._image import open_image
 
     try:
-        with Image.open(path) as im:
+        with open_image(path) as im:  # refuses images over the pixel limit, undecoded
             im.load()
             arr = np.asarray(im.convert("L"))
-    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as e:
+    except ImageError as e:
+        raise DatasetError(str(e)) from None
+    except (OSError, ValueError, SyntaxError) as e:
         raise DatasetError(f"{path}: cannot read image ({type(e).__name__}: {e})") from e
     if arr.ndim != 2 or arr.size == 0:
         raise DatasetError(f"{path}: image is empty")

@@ -47,13 +47,16 @@ def load_image(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     Raises
     ------
     ImageError
-        If the file is missing or unreadable, or the image is empty.
+        If the file is missing or unreadable, larger than
+        :func:`shapetree.curves._image.max_image_pixels`, or the image is empty.
     """
-    from PIL import Image, UnidentifiedImageError
+    from PIL import UnidentifiedImageError
+
+    from shapetree.curves._image import open_image
 
     p = Path(path)
     try:
-        with Image.open(p) as im:
+        with open_image(p) as im:
             arr = np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0
     except FileNotFoundError as exc:
         raise ImageError(f"image file not found: {p}") from exc
@@ -82,13 +85,16 @@ def load_edges(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     Raises
     ------
     ImageError
-        If the file is missing or unreadable.
+        If the file is missing or unreadable, or larger than
+        :func:`shapetree.curves._image.max_image_pixels`.
     """
-    from PIL import Image, UnidentifiedImageError
+    from PIL import UnidentifiedImageError
+
+    from shapetree.curves._image import open_image
 
     p = Path(path)
     try:
-        with Image.open(p) as im:
+        with open_image(p) as im:
             if im.mode not in ("L", "I", "I;16", "F", "1"):
                 im = im.convert("L")
             arr = np.asarray(im)
