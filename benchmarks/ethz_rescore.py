@@ -24,13 +24,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import RESULTS, machine, write_json  # noqa: E402
 
+from shapetree.curves._image import open_image  # noqa: E402
 from shapetree.detection import (  # noqa: E402
     DetectParams,
     dr_at_fppi,
@@ -52,7 +52,11 @@ def main() -> None:
         "--data", default=os.environ.get("SHAPETREE_DATA", str(REPO.parent / "shared" / "datasets"))
     )
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--cache-dir", default=str(REPO / "cache" / "ethz_detect"))
+    ap.add_argument(
+        "--cache-dir",
+        default=None,
+        help="default: $SHAPETREE_CACHE/ethz_detect (else ~/.cache/shapetree/ethz_detect)",
+    )
     ap.add_argument("--json", default=str(RESULTS / "ethz_ranking.json"))
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -65,7 +69,7 @@ def main() -> None:
     imgs = _images(root)
     hw = {}
     for folder, stem in imgs:
-        with Image.open(root / folder / f"{stem}.jpg") as im:
+        with open_image(root / folder / f"{stem}.jpg") as im:
             w, h = im.size
         hw[(folder, stem)] = (h, w)
     model_pts = {

@@ -7,8 +7,10 @@ Usage::
 Writes ``benchmarks/results/ethz.json`` (DR at 0.3 / 0.4 FPPI under the 20% and
 50% IoU rules, per class and mean; seconds per image; all parameters), the
 DR/FPPI plot and the swan / bottle galleries next to it.  Per-image detections
-are cached under ``cache/ethz_detect/`` in the repository, so a killed run
-resumes where it stopped.
+are cached under ``$SHAPETREE_CACHE/ethz_detect/`` (default
+``~/.cache/shapetree/ethz_detect/``; ``--cache-dir`` to change), keyed by the
+parameters and the code fingerprint, so a killed run resumes where it stopped
+and an edited package never reuses stale detections.
 """
 
 from __future__ import annotations
@@ -37,7 +39,11 @@ def main() -> None:
     ap.add_argument("--k", type=int, default=5)
     ap.add_argument("--json", default=str(REPO / "benchmarks" / "results" / "ethz.json"))
     ap.add_argument("--out-dir", default=str(REPO / "benchmarks" / "results"))
-    ap.add_argument("--cache-dir", default=str(REPO / "cache" / "ethz_detect"))
+    ap.add_argument(
+        "--cache-dir",
+        default=None,
+        help="default: $SHAPETREE_CACHE/ethz_detect (else ~/.cache/shapetree/ethz_detect)",
+    )
     args = ap.parse_args()
     res = evaluate_ethz(
         args.data,
@@ -51,7 +57,7 @@ def main() -> None:
     )
     res["machine"] = machine()
     res["command"] = "python3 benchmarks/eval_ethz.py " + " ".join(sys.argv[1:])
-    from shapetree.detection._files import atomic_write_bytes
+    from shapetree._atomic import atomic_write_bytes
 
     atomic_write_bytes(args.json, (json.dumps(res, indent=2) + "\n").encode())
     for key in ("overlap_20", "overlap_50"):

@@ -10,8 +10,11 @@ share of ground-truth boxes found) against false positives per image (FPPI,
 over all 255 images); DR at a given FPPI is the highest DR reached with FPPI
 at most that value.
 
-Per-image detections are cached as JSON files (one per class and image, under
-a folder named by a hash of the parameters), so an interrupted run resumes.
+Per-image detections are cached as JSON files (one per class and image) under
+``$SHAPETREE_CACHE/ethz_detect/<key>`` (default ``~/.cache/shapetree/ethz_detect``),
+so an interrupted run resumes.  ``<key>`` hashes the parameters, ``k`` and
+:func:`shapetree._cache.code_fingerprint` (the package version and the source of
+the matching and detection code), so results of other code are never reused.
 """
 
 from __future__ import annotations
@@ -26,10 +29,11 @@ from typing import Any
 
 import numpy as np
 
+from shapetree._atomic import atomic_write_bytes
+from shapetree._cache import cache_root, code_fingerprint
 from shapetree._errors import DatasetError
 
 from ._detect import DetectParams, detect_detailed
-from ._files import atomic_write_bytes
 
 __all__ = ["evaluate_ethz", "ethz_root", "ETHZ_CLASSES", "dr_at_fppi", "dr_fppi_curve"]
 
@@ -178,8 +182,19 @@ def dr_at_fppi(fppi: np.ndarray, dr: np.ndarray, at: float) -> float:
 
 
 def _params_key(params: DetectParams, k: int) -> str:
-    blob = json.dumps({"params": params.as_dict(), "k": k, "v": 3}, sort_keys=True)
-    return hashlib.sha1(blob.encode()).hexdigest()[:12]
+    """Cache sub-folder name: hash of the parameters, ``k`` and the code fingerprint."""
+    blob = json.dumps(
+        {"params": params.as_dict(), "k": k, "code": code_fingerprint()}, sort_keys=True
+    )
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def default_cache_dir() -> Path:
+    """Default ETHZ detection cache: ``cache_root() / "ethz_detect"``.
+
+    That is ``$SHAPETREE_CACHE/ethz_detect``, or ``~/.cache/shapetree/ethz_detect``.
+    """
+    return cache_root() / "ethz_detect"
 
 
 _MODELS: dict[str, Any] = {}
@@ -263,8 +278,9 @@ def evaluate_ethz(
     classes : sequence of str or None
         Subset of ``applelogos, bottles, giraffes, mugs, swans`` (default all).
     cache_dir : path-like or None
-        Per-image detection cache (default ``<out_dir or cwd>/cache/ethz_detect``);
-        a sub-folder per parameter hash.
+        Per-image detection cache (default ``$SHAPETREE_CACHE/ethz_detect``, i.e.
+        ``~/.cache/shapetree/ethz_detect``); a sub-folder per hash of ``params``, ``k``
+        and the code fingerprint, so a changed package never reuses stale detections.
     params : DetectParams or None
         Detection parameters (default :class:`DetectParams`).
     k : int
@@ -292,7 +308,7 @@ def evaluate_ethz(
         if c not in ETHZ_CLASSES:
             raise DatasetError(f"unknown ETHZ class {c!r}; known: {sorted(ETHZ_CLASSES)}")
     imgs = list(images) if images is not None else _images(root)
-    base = Path(cache_dir) if cache_dir else Path(out_dir or ".") / "cache" / "ethz_detect"
+    base = Path(cache_dir).expanduser() if cache_dir else default_cache_dir()
     cache = base / _params_key(params, k)
     pdict = params.as_dict()
     tasks = [(str(root), c, f, s, str(cache), pdict, k) for c in cls_list for f, s in imgs]
@@ -381,7 +397,7 @@ def _plots(out_dir: Path, root: Path, cls_list, curves, results, imgs) -> None:
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=80)
         plt.close(fig)
-        atomic_write_bytes(out_dir / name, buf.getvalue())
+        atomic_write_bytes(out_dir / name, buf.getvalue(), fsync=False)
 
     fig, axs = plt.subplots(1, 2, figsize=(11, 4.5))
     for ax, thr in zip(axs, (0.2, 0.5), strict=True):
