@@ -401,6 +401,23 @@ def test_limit_above_pillows_ceiling_reaches_pillow(
             pass
 
 
+def test_raised_limit_silences_pillows_warning(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Images the user allowed (over Pillow's warning level) open without Pillow's warning."""
+    import warnings
+
+    from shapetree.curves._image import open_image
+
+    big = _png_header_only(tmp_path / "big.png", 10000, 10000)
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", Image.MAX_IMAGE_PIXELS)  # restored after
+    monkeypatch.setenv("SHAPETREE_MAX_PIXELS", "100000000")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Image.DecompressionBombWarning)
+        with open_image(big) as im:
+            assert im.size == (10000, 10000)
+
+
 def test_bomb_is_refused_by_detection_loaders(bomb: Path, default_limit: None) -> None:
     from shapetree.detection import load_edges, load_image
 

@@ -79,12 +79,13 @@ def _too_large(name: str, pixels: int, limit: int, size: tuple[int, int] | None 
 def _allow_in_pillow(limit: int) -> None:
     """Let Pillow's own bomb guard accept what ``limit`` accepts (only ever raises it).
 
-    Pillow refuses images over ``2 * Image.MAX_IMAGE_PIXELS`` (about 179 megapixels) on
-    its own; a larger ``SHAPETREE_MAX_PIXELS`` would have no effect without this. The
-    default limit is below Pillow's, so by default Pillow's setting is left as it is.
+    Pillow warns (``DecompressionBombWarning``) above ``Image.MAX_IMAGE_PIXELS`` (about 89
+    megapixels) and refuses images over twice that; a ``SHAPETREE_MAX_PIXELS`` above it
+    would otherwise be undone by Pillow. The default limit is below Pillow's, so by
+    default Pillow's setting is left as it is; it is never lowered.
     """
     current = Image.MAX_IMAGE_PIXELS
-    if current is not None and limit > 2 * current:
+    if current is not None and limit > current:
         Image.MAX_IMAGE_PIXELS = limit
 
 
