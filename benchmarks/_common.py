@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from shapetree._atomic import atomic_open
-from shapetree.retrieval import machine_info
+from shapetree._bench import machine_info
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

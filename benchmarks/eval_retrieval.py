@@ -22,13 +22,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS  # noqa: E402
 
-from shapetree.retrieval import (  # noqa: E402
-    EVAL_PARAMS,
-    SYMMETRIZE,
-    combine,
-    evaluate,
-    protocol_score,
-)
+from shapetree._bench import protocol_score  # noqa: E402
+from shapetree.matching import OPTIONS, PRESETS  # noqa: E402
+from shapetree.matching._config import SYMMETRIZE  # noqa: E402
+from shapetree.retrieval import EVAL_PARAMS, combine, evaluate  # noqa: E402
 
 #: The ablation's value per set: the rank row, the bull's-eye, or [mean, std] accuracy.
 _HEADLINE = {
@@ -42,7 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("dataset", choices=["kimia99", "mpeg7", "swedish_leaf"])
-    for k, spec in EVAL_PARAMS.items():
+    ap.add_argument("--preset", choices=list(PRESETS), default="general")
+    for k, spec in {**OPTIONS, **EVAL_PARAMS}.items():
         flag = "--" + k.replace("_", "-")
         if spec["type"] is bool:
             ap.add_argument(
@@ -51,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             ap.add_argument(
                 flag,
-                type=spec["type"],
+                type=lambda t, typ=spec["type"]: None if t.lower() == "none" else typ(t),
                 default=None,
                 help=spec["help"],
                 choices=spec.get("choices"),
@@ -61,7 +59,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out-dir", default=str(RESULTS))
     ap.add_argument("--no-ablation", action="store_true")
     args = ap.parse_args(argv)
-    params = {k: getattr(args, k) for k in EVAL_PARAMS if getattr(args, k) is not None}
+    params = {
+        k: getattr(args, k) for k in {**OPTIONS, **EVAL_PARAMS} if getattr(args, k) is not None
+    }
     if args.no_cache:
         params.pop("cache_dir", None)
     else:
@@ -73,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     arrays: dict = {}
     rec = evaluate(
         args.dataset,
+        args.preset,
         json_path=json_path,
         out_dir=args.out_dir,
         command=command,
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         **params,
     )
     p = rec["params"]
-    if not args.no_ablation and p["mirror"]:
+    if not args.no_ablation and rec["config"]["mirror"]:
         c, labels = arrays["costs"], arrays["labels"]
         rec["ablation"] = {
             f"mirror={mir} symmetrize={s}": _HEADLINE[args.dataset](

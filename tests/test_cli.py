@@ -18,22 +18,25 @@ from shapetree.matching import match
 
 COMMAND_OPTIONS = {
     "match": [
-        "--points",
+        "--preset",
+        "--n-points",
         "--weight",
         "--occlusion",
-        "--trees",
+        "--n-trees",
         "--split",
+        "--mirror",
+        "--phases",
         "--open",
         "--plot",
         "--json",
     ],
-    "tree": ["--points", "--split", "--levels", "--output"],
-    "deform": ["--points", "--scale", "--count", "--seed", "--output"],
-    "demo": ["--output", "--query", "--points", "--seed", "--list"],
+    "tree": ["--n-points", "--split", "--levels", "--output"],
+    "deform": ["--n-points", "--scale", "--count", "--seed", "--output"],
+    "demo": ["--output", "--query", "--preset", "--seed", "--list"],
     "datasets": ["fetch", "list"],
     "evaluate": ["--json", "--out", "--param", "kimia99", "mpeg7", "swedish_leaf", "ethz"],
     "detect": ["--edges", "--output", "--json", "-k"],
-    "search": ["-k", "--plot", "--json", "--points", "--trees", "--mirror", "--skip-bad"],
+    "search": ["-k", "--plot", "--json", "--preset", "--n-points", "--n-trees", "--mirror"],
     "distances": ["--output", "--csv", "--symmetrize", "--cache", "--no-cache", "--band"],
 }
 
@@ -105,11 +108,11 @@ def test_module_entry_point_subprocess():
 
 def test_match_point_files_prints_the_library_cost(capsys, files, tmp_path):
     a, b = files / "circle.csv", files / "ellipse.csv"
-    code, out, err = run(capsys, "match", a, b, "--points", 40, "--json", tmp_path / "m.json")
+    code, out, err = run(capsys, "match", a, b, "--n-points", 40, "--json", tmp_path / "m.json")
     assert code == 0, err
-    pa, _ = load_curve(a, n_points=40, closed=True)
-    pb, _ = load_curve(b, n_points=40, closed=True)
-    expected = match(pa, pb).cost
+    pa, _ = load_curve(a, closed=True)
+    pb, _ = load_curve(b, closed=True)
+    expected = match(pa, pb, n_points=40).cost
     assert printed_cost(out) == pytest.approx(expected, rel=1e-10, abs=1e-14)
     doc = json.loads((tmp_path / "m.json").read_text())
     assert doc["cost"] == pytest.approx(expected, rel=1e-12)
@@ -123,38 +126,51 @@ def test_match_options_are_passed_through(capsys, files):
         "match",
         a,
         b,
-        "--points",
+        "--n-points",
         30,
         "--weight",
         2,
-        "--trees",
-        3,
+        "--n-trees",
+        2,
         "--split",
         "best",
         "--occlusion",
         0.3,
+        "--no-mirror",
+        "--band",
+        "none",
     )
     assert code == 0
-    pa, _ = load_curve(a, n_points=30, closed=True)
-    pb, _ = load_curve(b, n_points=30, closed=True)
-    res = match(pa, pb, weight=2.0, n_trees=3, split="best", occlusion=0.3)
+    pa, _ = load_curve(a, closed=True)
+    pb, _ = load_curve(b, closed=True)
+    opts = dict(n_points=30, weight=2.0, n_trees=2, split="best", occlusion=0.3)
+    res = match(pa, pb, mirror=False, band=None, **opts)
     assert printed_cost(out) == pytest.approx(res.cost, rel=1e-10, abs=1e-14)
     assert "best shape-tree: #" in out
-    code, out, _ = run(capsys, "match", a, b, "--points", 20, "--open")
-    pa, _ = load_curve(a, n_points=20, closed=False)
-    pb, _ = load_curve(b, n_points=20, closed=False)
-    assert printed_cost(out) == pytest.approx(match(pa, pb, closed=False).cost, rel=1e-10)
+    code, out, _ = run(capsys, "match", a, b, "--n-points", 20, "--open")
+    pa, _ = load_curve(a, closed=False)
+    pb, _ = load_curve(b, closed=False)
+    want = match(pa, pb, closed=False, n_points=20).cost
+    assert printed_cost(out) == pytest.approx(want, rel=1e-10)
 
 
 def test_match_image_with_plot(capsys, files, tmp_path):
     png = tmp_path / "out" / "match.png"
     code, out, err = run(
-        capsys, "match", files / "arrow.png", files / "ellipse.csv", "--points", 36, "--plot", png
+        capsys,
+        "match",
+        files / "arrow.png",
+        files / "ellipse.csv",
+        "--n-points",
+        36,
+        "--plot",
+        png,
     )
     assert code == 0, err
-    pa, _ = load_curve(files / "arrow.png", n_points=36, closed=True)
-    pb, _ = load_curve(files / "ellipse.csv", n_points=36, closed=True)
-    assert printed_cost(out) == pytest.approx(match(pa, pb).cost, rel=1e-10, abs=1e-14)
+    pa, _ = load_curve(files / "arrow.png", closed=True)
+    pb, _ = load_curve(files / "ellipse.csv", closed=True)
+    want = match(pa, pb, n_points=36).cost
+    assert printed_cost(out) == pytest.approx(want, rel=1e-10, abs=1e-14)
     assert str(png) in out
     with Image.open(png) as im:
         assert im.format == "PNG"
@@ -163,9 +179,20 @@ def test_match_image_with_plot(capsys, files, tmp_path):
     assert sorted(p.name for p in png.parent.iterdir()) == ["match.png"]
 
 
-def test_match_demo_shapes(capsys):
-    code, out, _ = run(capsys, "match", "demo:G", "demo:glyph-S", "--points", 32)
-    assert code == 0 and printed_cost(out) > 0
+def test_match_demo_shapes_rank_a_rotated_copy_first(capsys, tmp_path):
+    """A glyph costs far less against a rotated, rescaled copy of itself than against
+    another glyph (the cost is similarity-invariant up to sampling)."""
+    from shapetree.demo import demo_shape
+
+    g = demo_shape("glyph-G", n_points=200)
+    c, s = np.cos(0.7), np.sin(0.7)
+    np.savetxt(tmp_path / "g.csv", 2.5 * g @ np.array([[c, -s], [s, c]]) + 3.0, delimiter=",")
+    code, out, _ = run(capsys, "match", "demo:G", tmp_path / "g.csv")
+    assert code == 0
+    own = printed_cost(out)
+    code, out, _ = run(capsys, "match", "demo:G", "demo:glyph-S")
+    assert code == 0
+    assert own < 0.1 * printed_cost(out)
 
 
 @pytest.mark.parametrize(
@@ -208,7 +235,9 @@ def test_bad_arguments_are_one_line_exit_2(capsys, tmp_path, monkeypatch, argv):
 @pytest.mark.parametrize(
     "argv",
     [
-        ["match", "a", "b", "--points", "2"],
+        ["match", "a", "b", "--n-points", "2"],
+        ["match", "a", "b", "--phases", "x"],
+        ["match", "a", "b", "--preset", "nosuch"],
         ["deform", "x", "--count", "0"],
         ["match", "a", "b", "--weight", "nan"],
     ],
@@ -220,7 +249,7 @@ def test_usage_errors_exit_2(capsys, argv):
 
 def test_tree_and_deform_write_pictures(capsys, files, tmp_path):
     out = tmp_path / "tree.png"
-    code, text, _ = run(capsys, "tree", files / "arrow.png", "--points", 24, "-o", out)
+    code, text, _ = run(capsys, "tree", files / "arrow.png", "--n-points", 24, "-o", out)
     assert code == 0 and str(out) in text
     with Image.open(out) as im:
         assert im.format == "PNG" and im.width > 300
@@ -229,7 +258,7 @@ def test_tree_and_deform_write_pictures(capsys, files, tmp_path):
         capsys,
         "deform",
         "demo:star",
-        "--points",
+        "--n-points",
         32,
         "--scale",
         "0.02",
@@ -246,8 +275,8 @@ def test_tree_and_deform_write_pictures(capsys, files, tmp_path):
 
 def test_default_output_names(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert run(capsys, "tree", "demo:leaf", "--points", 20)[0] == 0
-    assert run(capsys, "deform", "demo:leaf", "--points", 20, "--count", 1)[0] == 0
+    assert run(capsys, "tree", "demo:leaf", "--n-points", 20)[0] == 0
+    assert run(capsys, "deform", "demo:leaf", "--n-points", 20, "--count", 1)[0] == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["leaf-deform.png", "leaf-tree.png"]
 
 
@@ -324,8 +353,8 @@ def test_evaluate_passes_options_to_retrieval(capsys, monkeypatch, tmp_path):
 
     seen = {}
 
-    def fake_evaluate(name, **kwargs):
-        seen.update(kwargs, name=name)
+    def fake_evaluate(name, config, **kwargs):
+        seen.update(kwargs, name=name, config=config)
         return {"dataset": name}
 
     monkeypatch.setattr(retrieval, "evaluate", fake_evaluate)
@@ -345,20 +374,23 @@ def test_evaluate_passes_options_to_retrieval(capsys, monkeypatch, tmp_path):
         "20",
         "--param",
         "band=1.5",
+        "--preset",
+        "paper",
     )
     assert code == 0, err
     assert seen["name"] == "mpeg7" and seen["json_path"] == str(tmp_path / "r.json")
+    assert seen["config"] == "paper"
     assert seen["progress"] is False
     assert seen["n_points"] == 30 and seen["mirror"] is False and seen["band"] == 1.5
     assert seen["workers"] == 3 and seen["k"] == 20
-    assert "weight" not in seen  # untouched options keep the library's (per-dataset) default
+    assert "weight" not in seen  # untouched options keep the preset's value
 
 
 def test_evaluate_caches_by_default_so_runs_resume(capsys, monkeypatch, tmp_path):
     import shapetree.retrieval as retrieval
 
     seen: list = []
-    monkeypatch.setattr(retrieval, "evaluate", lambda name, **kw: seen.append(kw) or {})
+    monkeypatch.setattr(retrieval, "evaluate", lambda name, cfg, **kw: seen.append(kw) or {})
     monkeypatch.setenv("SHAPETREE_CACHE", str(tmp_path / "c"))
     assert run(capsys, "evaluate", "kimia99", "--no-progress")[0] == 0
     assert seen[-1]["cache_dir"] == str(tmp_path / "c" / "distances" / "kimia99")

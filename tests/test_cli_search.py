@@ -46,9 +46,9 @@ def test_search_ranks_the_deformed_copy_first(capsys, folder: Path, tmp_path: Pa
         folder,
         "-k",
         "3",
-        "--points",
+        "--n-points",
         "32",
-        "--trees",
+        "--n-trees",
         "1",
         "--json",
         out_json,
@@ -64,12 +64,12 @@ def test_search_ranks_the_deformed_copy_first(capsys, folder: Path, tmp_path: Pa
     assert len(rec["ranking"]) == 2 * len(NAMES)  # the full ranking, notes.md skipped
     dist = [r["distance"] for r in rec["ranking"]]
     assert dist == sorted(dist)
-    assert rec["params"]["n_points"] == 32
+    assert rec["config"]["n_points"] == 32 and rec["preset"] == "general"
     assert out_png.stat().st_size > 5_000
 
 
 def test_distances_matrix_resumes_and_writes_csv(capsys, folder: Path, tmp_path: Path):
-    args = ["distances", folder, "--points", "24", "--trees", "1", "--no-progress"]
+    args = ["distances", folder, "--n-points", "24", "--n-trees", "1", "--no-progress"]
     args += ["--cache", tmp_path / "cache"]
     code, out, err = run(capsys, *args, "-o", tmp_path / "D.npz", "--csv", tmp_path / "D.csv")
     assert code == 0, err
@@ -78,7 +78,7 @@ def test_distances_matrix_resumes_and_writes_csv(capsys, folder: Path, tmp_path:
     n = 2 * len(NAMES)
     assert d.shape == (n, n) and len(names) == n
     assert np.allclose(np.diag(d), 0.0, atol=1e-12)
-    assert json.loads(str(z["params"]))["n_points"] == 24
+    assert json.loads(str(z["config"]))["config"]["n_points"] == 24
     # every shape's nearest other shape is its deformed copy (or the copy's original)
     off = d + np.diag(np.full(n, np.inf))
     for i, nm in enumerate(names):
@@ -101,13 +101,13 @@ def test_bad_shapes_are_listed_or_skipped(capsys, folder: Path, tmp_path: Path):
     (db / "broken.png").write_bytes(b"not an image")
     (db / "nan.csv").write_text("0,0\n1,nan\n2,0\n")
     query = folder / "star.csv"
-    code, out, err = run(capsys, "search", query, db, "--points", "20", "--no-progress")
+    code, out, err = run(capsys, "search", query, db, "--n-points", "20", "--no-progress")
     assert code == 2 and out == ""
     assert "2 of 5 shapes could not be read" in err
     assert "broken.png" in err and "nan.csv" in err and "--skip-bad" in err
     assert len(err.strip().splitlines()) == 1
     code, out, err = run(
-        capsys, "search", query, db, "--points", "20", "--no-progress", "--skip-bad"
+        capsys, "search", query, db, "--n-points", "20", "--no-progress", "--skip-bad"
     )
     assert code == 0 and "skipped 2 unreadable" in err
     assert "3 nearest of 3 shapes" in out or "of 3 shapes" in out
@@ -132,11 +132,11 @@ def test_usage_problems_are_one_line(capsys, tmp_path: Path, argv: list[str], wo
 
 def test_search_with_smoothing(capsys, folder: Path, tmp_path: Path):
     out_json = tmp_path / "s.json"
-    args = ["search", folder / "hand.csv", folder, "--points", "32", "--trees", "1"]
+    args = ["search", folder / "hand.csv", folder, "--n-points", "32", "--n-trees", "1"]
     code, out, err = run(capsys, *args, "--smooth", "0.005", "--json", out_json, "--no-progress")
     assert code == 0, err
     rec = json.loads(out_json.read_text())
-    assert rec["params"]["smooth"] == 0.005
+    assert rec["config"]["smooth"] == 0.005
     assert [r["shape"].split("/")[-1] for r in rec["ranking"][:2]] == ["hand.csv", "hand-copy.npy"]
     # smoothing changes the numbers (the query matches its own smoothed self at 0)
     code, _, _ = run(capsys, *args, "--json", tmp_path / "p.json", "--no-progress")

@@ -12,27 +12,30 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from shapetree._bench import format_table
 from shapetree.datasets import available
-from shapetree.retrieval import EVAL_PARAMS, evaluate, format_table
+from shapetree.matching import PRESETS, MatchConfig
+from shapetree.retrieval import EVAL_PARAMS, directed_costs, evaluate
 
-#: measured: ``evaluate("kimia99", **KIMIA_FAST)`` (every other option at its default).
-KIMIA_FAST = dict(
-    n_points=40, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=0.0, phases=1
+#: regression pin, measured with this code: ``evaluate("kimia99", KIMIA_FAST)``.
+KIMIA_FAST = MatchConfig(
+    n_points=40, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=None, phases=1
 )
 KIMIA_FAST_RANKS = [99, 99, 99, 98, 98, 97, 96, 93, 88, 68]  # sum 935
 #: the same matrix re-ranked by TPG diffusion (``rerank="tpg"``, not a pairwise measure).
 KIMIA_FAST_TPG_RANKS = [99] * 10
 
-#: the shipped defaults (``shapetree evaluate kimia99``: n = 50, 3 shape-trees, band 4, 4 target
-#: phases, float32), measured 2026-12-01 (benchmarks/results/kimia99.json): 970 of 990.
+#: regression pin of the ``kimia99`` preset (``shapetree evaluate kimia99 --preset kimia99``:
+#: n = 50, 3 shape-trees, band 4, 4 target phases, float32), the committed row of
+#: benchmarks/results/kimia99.json: 970 of 990.
 KIMIA_DEFAULT_RANKS = [99, 99, 99, 99, 99, 98, 97, 98, 94, 88]
 
 #: ten MPEG-7 classes (20 shapes each), including hard ones.
 MPEG7_CLASSES = "apple,bat,beetle,bird,Bone,camel,deer,device4,horse,pocket"
-MPEG7_FAST = dict(
-    n_points=32, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=0.0, phases=1
+MPEG7_FAST = MatchConfig(
+    n_points=32, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=None, phases=1
 )
-MPEG7_FAST_BULLSEYE = 90.5  # measured 90.95; threshold slightly below
+MPEG7_FAST_BULLSEYE = 90.5  # regression pin: measured 90.95; threshold slightly below
 
 
 def _have(name: str) -> bool:
@@ -52,20 +55,26 @@ def test_eval_params_are_cli_ready() -> None:
     assert "87.70%" in format_table("mpeg7", 90.0)
 
 
-def test_dataset_defaults_reach_evaluate() -> None:
-    from shapetree.retrieval._evaluate import _MATCH_KEYS, DATASET_DEFAULTS, _resolve
+def test_preset_reaches_the_engine() -> None:
+    """``evaluate(name, preset)`` computes exactly the costs of the preset's configuration
+    (and an option given on top changes them)."""
+    if not _have("kimia99"):
+        pytest.skip("kimia99 not present")
+    from shapetree import datasets
 
-    for name, tuned in DATASET_DEFAULTS.items():
-        assert set(_MATCH_KEYS) <= set(tuned), name  # every matching option is set per set
-        assert _resolve(name, {}) | tuned == _resolve(name, {})
-    # the reported Swedish setting weighs global nodes more (lambda ~ length^1.5) and
-    # samples targets twice as densely with free segment detail ...
-    sw = _resolve("swedish_leaf", {})
-    assert sw["length_power"] == 1.5 and sw["target_factor"] == 2 and sw["segment_weight"] == 0
-    assert _resolve("kimia99", {})["length_power"] == 1.0
-    # ... and an explicit value, or None ("per dataset"), is honoured
-    assert _resolve("swedish_leaf", {"length_power": 1.0})["length_power"] == 1.0
-    assert _resolve("swedish_leaf", {"length_power": None})["length_power"] == 1.5
+    small = dict(per_class=2, classes=["fish", "hand", "ray"])
+    ds = datasets.load("kimia99", n_points=None, progress=False, **small)
+    cfg = PRESETS["swedish_leaf"].replace(n_points=24, target_factor=2)
+    arrays: dict = {}
+    rec = evaluate("kimia99", cfg, progress=False, verbose=False, arrays=arrays, **small)
+    want = directed_costs(ds.curves, None, cfg, progress=False, workers=1)
+    np.testing.assert_array_equal(arrays["costs"], want)
+    assert rec["config"] == cfg.as_dict() and rec["preset"] is None
+    other: dict = {}
+    evaluate("kimia99", cfg, progress=False, verbose=False, arrays=other, length_power=1.0, **small)
+    assert not np.allclose(other["costs"], want)
+    with pytest.raises(Exception, match="unknown evaluate option"):
+        evaluate("kimia99", cfg, progress=False, verbose=False, n_point=3)
 
 
 @pytest.mark.slow
@@ -74,11 +83,11 @@ def test_kimia99_end_to_end(out: Path) -> None:
         pytest.skip("kimia99 not present")
     rec = evaluate(
         "kimia99",
+        KIMIA_FAST,
         json_path=out / "k.json",
         out_dir=out,
         progress=False,
         rerank="tpg",
-        **KIMIA_FAST,
     )
     assert rec["pairwise"]["ranks"] == KIMIA_FAST_RANKS
     assert rec["reranked"]["ranks"] == KIMIA_FAST_TPG_RANKS
@@ -86,18 +95,19 @@ def test_kimia99_end_to_end(out: Path) -> None:
     saved = json.loads((out / "k.json").read_text())
     assert saved["ranks"] == KIMIA_FAST_TPG_RANKS and len(saved["ranks"]) == 10
     assert saved["pairwise"]["ranks"] == KIMIA_FAST_RANKS
-    assert saved["seconds"] > 0 and saved["params"]["n_points"] == 40
-    assert saved["params"]["band"] == 2.0 and saved["params"]["mirror"] is True
+    assert saved["seconds"] > 0 and saved["config"]["n_points"] == 40
+    assert saved["config"]["band"] == 2.0 and saved["config"]["mirror"] is True
+    assert MatchConfig.from_dict(saved["config"]) == KIMIA_FAST
     assert (out / "kimia99_retrieval.png").stat().st_size > 10_000
 
 
 @pytest.mark.slow
 def test_kimia99_shipped_defaults_row() -> None:
-    """The reported Kimia-99 row, with the settings a user gets (about 25 s on 2 cores)."""
+    """The committed Kimia-99 row of the ``kimia99`` preset (about 25 s on 2 cores)."""
     if not _have("kimia99"):
         pytest.skip("kimia99 not present")
-    rec = evaluate("kimia99", progress=False, verbose=False)
-    assert rec["measure"].startswith("pairwise") and rec["params"]["phases"] == 4
+    rec = evaluate("kimia99", "kimia99", progress=False, verbose=False)
+    assert rec["measure"].startswith("pairwise") and rec["preset"] == "kimia99"
     ranks = np.asarray(rec["ranks"])
     # float32 tables under fastmath: allow a near-tie to flip one hit at a rank
     assert np.abs(ranks - KIMIA_DEFAULT_RANKS).max() <= 1, ranks.tolist()
@@ -110,11 +120,11 @@ def test_mpeg7_reduced_bullseye(out: Path) -> None:
         pytest.skip("mpeg7 not present")
     rec = evaluate(
         "mpeg7",
+        MPEG7_FAST,
         json_path=out / "m.json",
         out_dir=out,
         progress=False,
         classes=MPEG7_CLASSES,
-        **MPEG7_FAST,
     )
     assert rec["n_shapes"] == 200 and rec["n_classes"] == 10
     assert rec["bullseye"] >= MPEG7_FAST_BULLSEYE

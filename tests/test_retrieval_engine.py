@@ -17,9 +17,31 @@ import pytest
 
 from shapetree import ShapeTreeError
 from shapetree.curves import resample
-from shapetree.matching import MatchParams, match_cost, prepare_model, prepare_target
-from shapetree.retrieval import directed_costs, distance_matrix, mirror_curve
+from shapetree.matching import (
+    MatchConfig,
+    MatchParams,
+    match_cost,
+    mirror_curve,
+    prepare_model,
+    prepare_target,
+)
+from shapetree.retrieval import directed_costs as _directed_costs
+from shapetree.retrieval import distance_matrix as _distance_matrix
 from shapetree.retrieval._engine import read_block, write_block
+
+#: the literal matcher on the given sampling: the options these tests change start from it
+RAW = MatchConfig(n_points=50, n_trees=1, mirror=False, band=None, phases=1)
+
+
+def directed_costs(*args, **kw):
+    return _directed_costs(*args, **{"config": RAW, **kw})
+
+
+def distance_matrix(*args, **kw):
+    if kw.get("symmetrize", "") is None:
+        kw["symmetrize"] = "none"
+    kw.setdefault("symmetrize", "min")
+    return _distance_matrix(*args, **{"config": RAW, **kw})
 
 
 def _shapes(k: int = 6, n: int = 60, seed: int = 0) -> list[np.ndarray]:
@@ -159,8 +181,7 @@ _CHILD = textwrap.dedent(
     import sys
     import numpy as np
     sys.path.insert(0, {tests!r})
-    from test_retrieval_engine import _shapes
-    from shapetree.retrieval import distance_matrix
+    from test_retrieval_engine import _shapes, distance_matrix
     d = distance_matrix(_shapes(40, seed=5), n_points=36, mirror=True, block=1, workers=2,
                         cache_dir={cache!r}, progress=False)
     np.save({out!r}, d)
@@ -270,8 +291,8 @@ def test_phases_and_dense_targets_reach_the_matcher():
         (dict(phases=2.5), "phases must be an integer >= 1"),
         (dict(target_factor=0), "target_factor must be an integer >= 1"),
         (dict(segment_weight=-1.0), "segment_weight must be a number >= 0"),
-        (dict(phases=2, n_points=None), "needs n_points"),
-        (dict(target_factor=2, n_points=None), "needs n_points"),
+        (dict(phases=2, n_points=None), "need n_points"),
+        (dict(target_factor=2, n_points=None), "need n_points"),
         (dict(precision="half"), "precision must be one of"),
     ],
 )

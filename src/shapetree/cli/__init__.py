@@ -95,6 +95,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         Exit status: 0 on success, 2 on bad input (message on stderr), 130 when
         interrupted.
     """
+    import warnings
+
+    # shapetree's own pixel limit refuses such images with one line; Pillow's warning is noise
+    warnings.filterwarnings("ignore", message=r"Image size \(\d+ pixels\) exceeds limit")
     args_list = list(sys.argv[1:] if argv is None else argv)
     try:
         parser = build_parser(args_list)

@@ -6,7 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
-from shapetree.cli._common import Formatter, info, nonneg_float, points_int, positive_int
+from shapetree.cli._common import Formatter, info, nonneg_float, positive_int
+from shapetree.cli._options import add_config_options, config_from_args, preset_of
 
 DEMO_EPILOG = """\
 examples:
@@ -53,7 +54,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         metavar="NAME",
         help="query shape: a single character (its glyph) or a demo shape name",
     )
-    p.add_argument("--points", type=points_int, default=80, metavar="N", help="points per curve")
+    add_config_options(p)
     p.add_argument(
         "--scale",
         type=nonneg_float,
@@ -94,9 +95,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
         raise ShapeTreeError(f"{out}: exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    config = config_from_args(args)
     rank = demo_ranking(
         args.query,
-        n_points=args.points,
+        config,
         scale=args.scale,
         copies=args.copies,
         seed=args.seed,
@@ -104,8 +106,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     qshort = rank.query_name.removeprefix("glyph-")
     info(
-        f"query: {qshort} ({rank.query_name}, {args.points} points); "
-        f"{len(rank.candidates)} candidates"
+        f"query: {qshort} ({rank.query_name}); {len(rank.candidates)} candidates; "
+        f"matcher: preset {preset_of(args)} ({config.describe()})"
     )
     info("")
     info(f"{'rank':>4}  {'cost':>9}  {'shape':<9} description")
@@ -122,7 +124,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     pictures: list[tuple[str, Path]] = []
     best = next(c for c in rank.candidates if c.same_as_query)
-    res = match(rank.query, best.points, closed=True)
+    res = match(rank.query, best.points, config)
     p = plot_match(
         res,
         path=out / "demo_match.png",
@@ -139,10 +141,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     pictures.append(("ranking", out / "demo_ranking.png"))
     hand, cut = (
-        demo_shape("hand", n_points=args.points),
-        demo_shape("hand-cut", n_points=args.points),
+        demo_shape("hand", n_points=120),
+        demo_shape("hand-cut", n_points=120),
     )
-    occ = match(hand, cut, closed=True, occlusion=1.0)
+    occ = match(hand, cut, config, occlusion=1.0)
     plot_match(
         occ,
         path=out / "demo_occlusion.png",

@@ -4,21 +4,22 @@ from __future__ import annotations
 
 import argparse
 import ast
-import importlib
-import os
 import shlex
 from pathlib import Path
 from typing import Any
 
 from shapetree._errors import ShapeTreeError
 from shapetree.cli._common import Formatter, info, positive_int, require
+from shapetree.cli._options import add_config_options, config_from_args, preset_of
+from shapetree.matching import OPTIONS
 
 EVAL_SETS = ("kimia99", "mpeg7", "swedish_leaf", "ethz")
 
 EVALUATE_EPILOG = """\
 examples:
   shapetree evaluate kimia99 --json kimia99.json --out results/
-  shapetree evaluate mpeg7 --json mpeg7.json --param n_points=100
+  shapetree evaluate mpeg7 --preset mpeg7 --json mpeg7.json   # the setting tuned on MPEG-7
+  shapetree evaluate swedish_leaf --preset paper --n-points 100
   shapetree evaluate ethz --classes swans bottles --workers 4 --json ethz.json --out results/
 
 kimia99 / mpeg7 / swedish_leaf run shapetree.retrieval.evaluate (all-pairs distances,
@@ -63,38 +64,6 @@ def key_value(text: str) -> tuple[str, Any]:
     return key, _literal(value.strip())
 
 
-def _eval_params() -> dict[str, Any]:
-    """``shapetree.retrieval.EVAL_PARAMS`` if the retrieval package provides it."""
-    try:
-        mod = importlib.import_module("shapetree.retrieval")
-    except ImportError:
-        return {}
-    params = getattr(mod, "EVAL_PARAMS", None)
-    return dict(params) if isinstance(params, dict) else {}
-
-
-def _tuned_keys() -> set[str]:
-    """Keys whose default depends on the dataset (``retrieval.DATASET_DEFAULTS``)."""
-    mod = importlib.import_module("shapetree.retrieval")
-    per = getattr(mod, "DATASET_DEFAULTS", {})
-    return {k for d in per.values() if isinstance(d, dict) for k in d}
-
-
-def _spec(value: Any) -> tuple[Any, str, Any, Any]:
-    """(default, help, choices, type) from an EVAL_PARAMS entry of any reasonable shape."""
-    if isinstance(value, dict):
-        typ = value.get("type")
-        return (
-            value.get("default"),
-            str(value.get("help", "")),
-            value.get("choices"),
-            typ if isinstance(typ, type) else None,
-        )
-    if isinstance(value, tuple | list) and len(value) == 2 and isinstance(value[1], str):
-        return value[0], value[1], None, None
-    return value, "", None, None
-
-
 def _typed(default: Any):
     if isinstance(default, bool):
         return _literal
@@ -133,8 +102,8 @@ def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="set a parameter by name (repeatable); retrieval: an EVAL_PARAMS key; "
-        "ethz: a DetectParams field",
+        help="set a parameter by name (repeatable); retrieval: a matching option or a "
+        "protocol option; ethz: a DetectParams field",
     )
     p.add_argument("--no-progress", action="store_true", help="hide progress bars")
     g = p.add_argument_group("options of both kinds of benchmark")
@@ -166,8 +135,9 @@ def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
         dest="cache_dir",
         metavar="DIR",
         default=argparse.SUPPRESS,
-        help="resumable cache (retrieval: default $SHAPETREE_CACHE/distances/<set>, else "
-        "~/.cache/shapetree/distances/<set>; ethz: <out>/cache/ethz_detect)",
+        help="resumable cache (default $SHAPETREE_CACHE/distances/<set> for retrieval and "
+        "$SHAPETREE_CACHE/ethz_detect for ethz; without SHAPETREE_CACHE under "
+        "~/.cache/shapetree)",
     )
     g.add_argument(
         "--no-cache",
@@ -183,34 +153,24 @@ def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
     )
     dynamic: list[str] = ["classes", "k", "workers", "cache_dir"]
     if full:
+        from shapetree.retrieval import EVAL_PARAMS
+
+        add_config_options(p)
         taken = {a.dest for a in p._actions}
-        tuned = _tuned_keys()
-        r = p.add_argument_group("retrieval options (evaluate kimia99 / mpeg7 / swedish_leaf)")
-        for key, value in _eval_params().items():
-            if key in taken or key in ("json_path", "out_dir", "progress", "verbose"):
+        r = p.add_argument_group("protocol options (evaluate kimia99 / mpeg7 / swedish_leaf)")
+        for key, spec in EVAL_PARAMS.items():
+            if key in taken:
                 continue
-            default, help_text, choices, typ = _spec(value)
-            flag = "--" + key.replace("_", "-")
-            shown = "per dataset" if default is None and key in tuned else default
-            text = f"{help_text} (default: {shown})".strip()
-            if typ is bool:
-                r.add_argument(
-                    flag,
-                    dest=key,
-                    default=argparse.SUPPRESS,
-                    action=argparse.BooleanOptionalAction,
-                    help=text,
-                )
-            else:
-                r.add_argument(
-                    flag,
-                    dest=key,
-                    default=argparse.SUPPRESS,
-                    type=typ or _typed(default),
-                    choices=choices,
-                    metavar=None if choices else "V",
-                    help=text,
-                )
+            typ, default, choices = spec["type"], spec["default"], spec.get("choices")
+            r.add_argument(
+                "--" + key.replace("_", "-"),
+                dest=key,
+                default=argparse.SUPPRESS,
+                type=typ if isinstance(typ, type) else _typed(default),
+                choices=choices,
+                metavar=None if choices else "V",
+                help=f"{spec['help']} (default: {default})",
+            )
             dynamic.append(key)
     p.set_defaults(func=cmd_evaluate, eval_dynamic=dynamic)
 
@@ -267,9 +227,9 @@ def _detect_params(pairs: list[tuple[str, Any]]) -> Any:
 
 def _default_distance_cache(dataset: str) -> Path:
     """Where ``shapetree evaluate`` keeps its resumable distance blocks by default."""
-    env = os.environ.get("SHAPETREE_CACHE", "").strip()
-    base = Path(env).expanduser() if env else Path.home() / ".cache" / "shapetree"
-    return base / "distances" / dataset
+    from shapetree._cache import cache_root
+
+    return cache_root() / "distances" / dataset
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -297,6 +257,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         for key in args.eval_dynamic:
             if hasattr(args, key):
                 params[key] = getattr(args, key)
+        config_from_args(args)  # validates the matching flags (one clear error)
+        params.update({k: getattr(args, k) for k in OPTIONS if hasattr(args, k)})
         if getattr(args, "no_cache", False):
             params["cache_dir"] = None
         elif params.get("cache_dir") is None:
@@ -305,6 +267,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         try:
             evaluate(
                 args.dataset,
+                preset_of(args),
                 json_path=args.json,
                 out_dir=args.out,
                 progress=progress,

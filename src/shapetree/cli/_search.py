@@ -17,13 +17,12 @@ from shapetree.cli._common import (
     Formatter,
     info,
     load_shape,
-    nonneg_float,
-    points_int,
     positive_int,
     warn,
     write_json,
 )
 from shapetree.cli._evaluate import _default_distance_cache
+from shapetree.cli._options import add_config_options, config_from_args, preset_of
 
 SEARCH_EPILOG = """\
 examples:
@@ -31,17 +30,19 @@ examples:
   shapetree search query.png shapes/ -k 5 --plot top5.png --json top5.json
   shapetree search demo:G demo:S demo:hand demo:G    # any mix of files and demo shapes
 
-The distance of a database shape x is psi(query deformed onto x) (paper section 3),
-the lesser of the query and its mirror image unless --no-mirror. Folders are read for
-images (png, gif, bmp, tif, jpg, pgm...) and point files (csv, txt, npy, json).
+The distance of a database shape x is the same number `shapetree match QUERY x` prints
+with the same options: by default (--preset general) psi(query deformed onto x), the lesser
+of the query and its mirror image. Folders are read for images (png, gif, bmp, tif, jpg,
+pgm...) and point files (csv, txt, npy, json).
 """
 
 DISTANCES_EPILOG = """\
 examples:
   shapetree distances shapes/ -o D.npz               # all pairs, resumable
   shapetree distances shapes/ -o D.npz --csv D.csv --symmetrize mean
+  shapetree distances shapes/ -o D.npz --preset paper --n-points 64
 
-The .npz holds D (n x n, row = query), names (n file names) and params (JSON text):
+The .npz holds D (n x n, row = query), names (n file names) and config (JSON text):
   z = numpy.load("D.npz"); D, names = z["D"], z["names"]
 Finished row blocks are cached (default $SHAPETREE_CACHE/distances/custom), so a run that
 is interrupted resumes where it stopped when started again with the same shapes and options.
@@ -98,28 +99,23 @@ def expand_specs(specs: list[str]) -> list[str]:
     return out
 
 
-def read_outline(spec: str, *, n_points: int, smooth: float = 0.0) -> np.ndarray:
-    """One closed outline, optionally smoothed (fraction of its length), resampled."""
-    from shapetree.curves import resample
-    from shapetree.curves import smooth as smooth_curve
-
-    shape = load_shape(spec, n_points=None if smooth else n_points, closed=True)
+def read_outline(spec: str) -> np.ndarray:
+    """One closed outline as traced or stored (the matcher configuration samples it)."""
+    shape = load_shape(spec, n_points=None, closed=True)
     if not shape.closed:
         raise ShapeTreeError(f"{spec}: is an open curve; search compares closed outlines")
-    if smooth:
-        return resample(smooth_curve(shape.points, smooth, closed=True), n_points, closed=True)
     return shape.points
 
 
 def load_shapes(
-    specs: list[str], *, n_points: int, skip_bad: bool, progress: bool, smooth: float = 0.0
+    specs: list[str], *, skip_bad: bool, progress: bool
 ) -> tuple[list[np.ndarray], list[str]]:
     """Read every shape as a closed curve; report every bad file, not just the first.
 
     Returns
     -------
-    curves : list of ndarray, each shape (n_points, 2)
-        Smoothed first when ``smooth > 0`` (fraction of the length).
+    curves : list of ndarray, each shape (k_i, 2)
+        The outlines as read.
     names : list of str
         The spec of each curve that was read.
     """
@@ -130,7 +126,7 @@ def load_shapes(
     bad: list[str] = []
     for spec in tqdm(specs, desc="reading shapes", unit="shape", disable=not progress):
         try:
-            curves.append(read_outline(spec, n_points=n_points, smooth=smooth))
+            curves.append(read_outline(spec))
         except (ShapeTreeError, OSError) as exc:
             bad.append(" ".join(str(exc).split()))
             continue
@@ -146,52 +142,9 @@ def load_shapes(
     return curves, names
 
 
-def _add_matching(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("matching")
-    g.add_argument(
-        "--points",
-        type=points_int,
-        default=50,
-        metavar="N",
-        help="resample every outline to N points (time grows as N^4)",
-    )
-    g.add_argument(
-        "--trees",
-        type=positive_int,
-        default=3,
-        metavar="T",
-        help="shape-trees per query (different start points), best kept",
-    )
-    g.add_argument(
-        "--occlusion",
-        type=nonneg_float,
-        default=0.0,
-        metavar="K",
-        help="replacement cost factor for missing/extra parts (0: off)",
-    )
-    g.add_argument(
-        "--smooth",
-        type=nonneg_float,
-        default=0.0,
-        metavar="S",
-        help="Gaussian smoothing of each outline before resampling, as a fraction of its "
-        "length, e.g. 0.005 against pixel staircases (0: off)",
-    )
-    g.add_argument(
-        "--band",
-        type=nonneg_float,
-        default=4.0,
-        metavar="B",
-        help="pruned matching: max stretch of a subcurve (0: exact matching, 2-4x slower; "
-        "on Kimia-99 3 trees + band 4 ranked as well as exact matching)",
-    )
-    g.add_argument(
-        "--mirror",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="also match the mirrored query and keep the better cost",
-    )
-    g.add_argument("--workers", type=positive_int, default=2, metavar="W", help="threads")
+def _add_run_options(p: argparse.ArgumentParser) -> None:
+    add_config_options(p)
+    p.add_argument("--workers", type=positive_int, default=2, metavar="W", help="threads")
     p.add_argument(
         "--skip-bad",
         action="store_true",
@@ -215,7 +168,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-k", type=positive_int, default=10, metavar="K", help="results shown")
     p.add_argument("--plot", metavar="PNG", help="draw the query and its K nearest shapes")
     p.add_argument("--json", metavar="PATH", help="write the full ranking as JSON")
-    _add_matching(p)
+    _add_run_options(p)
     p.set_defaults(func=cmd_search)
 
     p = sub.add_parser(
@@ -230,71 +183,38 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", metavar="NPZ", required=True, help="output .npz file")
     p.add_argument("--csv", metavar="PATH", help="also write the matrix as CSV with names")
     p.add_argument(
-        "--symmetrize",
-        choices=("min", "mean", "max", "none"),
-        default="none",
-        help="combine psi(i,j) and psi(j,i); none keeps psi(row deformed onto column)",
-    )
-    p.add_argument(
         "--cache",
         metavar="DIR",
         default=None,
         help="resumable block cache (default: $SHAPETREE_CACHE/distances/custom)",
     )
     p.add_argument("--no-cache", action="store_true", help="do not cache finished blocks")
-    _add_matching(p)
+    _add_run_options(p)
     p.set_defaults(func=cmd_distances)
 
 
-def _matching_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    return {
-        "n_points": None,  # curves are already resampled by load_shapes
-        "n_trees": args.trees,
-        "occlusion": args.occlusion or None,
-        "band": args.band or None,
-        "mirror": args.mirror,
-        "workers": args.workers,
-    }
-
-
 def _load_args(specs: list[str], args: argparse.Namespace) -> tuple[list[np.ndarray], list[str]]:
-    return load_shapes(
-        expand_specs(specs),
-        n_points=args.points,
-        skip_bad=args.skip_bad,
-        progress=not args.no_progress,
-        smooth=args.smooth,
-    )
-
-
-def _params(args: argparse.Namespace) -> dict[str, Any]:
-    return {
-        "n_points": args.points,
-        "n_trees": args.trees,
-        "occlusion": args.occlusion,
-        "band": args.band,
-        "mirror": args.mirror,
-        "smooth": args.smooth,
-    }
+    return load_shapes(expand_specs(specs), skip_bad=args.skip_bad, progress=not args.no_progress)
 
 
 def cmd_search(args: argparse.Namespace) -> int:
     """``shapetree search``."""
+    from shapetree.matching._api import model_curve
     from shapetree.plotting import check_figure_path
     from shapetree.retrieval import distance_matrix
 
     if args.plot:
         check_figure_path(args.plot)
     progress = not args.no_progress
-    query_points = read_outline(args.query, n_points=args.points, smooth=args.smooth)
+    config = config_from_args(args)
+    query_points = read_outline(args.query)
     curves, names = _load_args(args.database, args)
-    d = distance_matrix(
-        [query_points], curves, symmetrize="none", progress=progress, **_matching_kwargs(args)
-    )[0]
+    d = distance_matrix([query_points], curves, config, progress=progress, workers=args.workers)[0]
     d = np.maximum(d, 0.0)  # a rounding error below zero is a perfect match
     order = np.argsort(d, kind="stable")
     k = min(args.k, len(order))
     info(f"query {args.query}: {k} nearest of {len(names)} shapes (smaller = more similar)")
+    info(f"configuration: preset {preset_of(args)} ({config.describe()})")
     info(f"{'rank':>4}  {'distance':>9}  shape")
     for r, j in enumerate(order[:k], start=1):
         info(f"{r:>4}  {d[j]:9.5f}  {Path(names[j]).name}")
@@ -303,7 +223,8 @@ def cmd_search(args: argparse.Namespace) -> int:
             args.json,
             {
                 "query": args.query,
-                "params": _params(args),
+                "preset": preset_of(args),
+                "config": config.as_dict(),
                 "ranking": [
                     {"rank": r, "shape": names[j], "distance": float(d[j])}
                     for r, j in enumerate(order, start=1)
@@ -315,8 +236,8 @@ def cmd_search(args: argparse.Namespace) -> int:
         from shapetree.retrieval._figures import plot_search
 
         path = plot_search(
-            query_points,
-            [curves[j] for j in order[:k]],
+            model_curve(query_points, config),
+            [model_curve(curves[j], config) for j in order[:k]],
             [f"{Path(names[j]).name}\n{d[j]:.4f}" for j in order[:k]],
             args.plot,
             title=f"{Path(args.query).name}: nearest shapes",
@@ -347,17 +268,14 @@ def cmd_distances(args: argparse.Namespace) -> int:
         if args.cache
         else _default_distance_cache("custom")
     )
+    config = config_from_args(args)
     d = distance_matrix(
-        curves,
-        symmetrize=args.symmetrize,
-        progress=progress,
-        cache_dir=cache,
-        **_matching_kwargs(args),
+        curves, None, config, progress=progress, cache_dir=cache, workers=args.workers
     )
     d = np.maximum(d, 0.0)
-    params = dict(_params(args), symmetrize=args.symmetrize)
+    meta = {"preset": preset_of(args), "config": config.as_dict()}
     with atomic_open(out, "wb") as fh:
-        np.savez(fh, D=d, names=np.array(names), params=np.array(json.dumps(params)))
+        np.savez(fh, D=d, names=np.array(names), config=np.array(json.dumps(meta)))
     info(f"{len(names)} shapes, {len(names) ** 2} ordered pairs -> {out}")
     if args.csv:
         csv = Path(args.csv)

@@ -12,10 +12,10 @@ from shapetree.cli._common import (
     load_shape,
     nonneg_float,
     points_int,
-    positive_float,
     positive_int,
     write_json,
 )
+from shapetree.cli._options import add_config_options, config_from_args, preset_of
 
 SHAPE_HELP = (
     "an image (its silhouette's outer boundary), a point file (.csv/.txt/.npy/.json, "
@@ -25,19 +25,22 @@ SHAPE_HELP = (
 MATCH_EPILOG = """\
 examples:
   shapetree match demo:G demo:S
-  shapetree match bone-01.png bone-07.png --points 100 --plot match.png
+  shapetree match bone-01.png bone-07.png --n-points 100 --plot match.png
   shapetree match a.csv b.csv --open --weight 2 --json match.json
-  shapetree match hand.png hand-cut.png --occlusion 0.5 --trees 4 --plot occl.png
+  shapetree match hand.png hand-cut.png --occlusion 0.5 --n-trees 4 --plot occl.png
+  shapetree match a.png b.png --preset paper          # the method exactly as published
 
 The cost is psi(A, B) of paper eq. (1): the least shape-tree deformation taking A onto B,
-invariant to translation, rotation and scale. Closed curves (the default) try every
-cyclic alignment of B. Pictures: images are drawn upright (y down), point files y up.
+invariant to translation, rotation and scale (and, with --mirror, reflection). Closed
+curves (the default) try every cyclic alignment of B. The cost is the same number that
+shapetree search / distances and the Python API give for the same options.
+Pictures: images are drawn upright (y down), point files y up.
 """
 
 TREE_EPILOG = """\
 examples:
   shapetree tree demo:hand -o tree.png
-  shapetree tree leaf.png --points 64 --split best --levels 4 -o leaf-tree.png
+  shapetree tree leaf.png --n-points 64 --split best --levels 4 -o leaf-tree.png
 
 One panel per depth (paper Fig. 3): the coarse polygon through the points known so far
 (filled), the midpoints added at that depth (open circles) and, faint, the curve.
@@ -48,7 +51,7 @@ examples:
   shapetree deform demo:hand -o deform.png
   shapetree deform demo:square --scale 0.02 0.05 0.1 --count 6 --seed 3
   shapetree deform demo:hand demo:square demo:leaf demo:G --scale 0.04   # like Fig. 4
-  shapetree deform leaf.png --points 80 --scale 0.04 -o leaf-deform.png
+  shapetree deform leaf.png --n-points 80 --scale 0.04 -o leaf-deform.png
 
 Each row adds independent Gaussian noise of standard deviation S to every node's
 Bookstein coordinate and reconstructs the curve (paper Fig. 4); one row per shape and
@@ -68,29 +71,6 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("a", metavar="A", help="the model shape; " + SHAPE_HELP)
     p.add_argument("b", metavar="B", help="the target shape (same kinds as A)")
-    _add_points(p)
-    p.add_argument(
-        "--weight",
-        type=positive_float,
-        default=1.0,
-        metavar="W",
-        help="lambda: deformation weight per unit of relative subcurve length",
-    )
-    p.add_argument(
-        "--occlusion",
-        type=positive_float,
-        default=None,
-        metavar="K",
-        help="allow replacing parts at cost K*lambda*(|A'|+|B'|) (occlusion; default off)",
-    )
-    p.add_argument(
-        "--trees",
-        type=positive_int,
-        default=1,
-        metavar="T",
-        help="number of shape-trees of A tried (different start points); best is kept",
-    )
-    _add_split(p)
     p.add_argument(
         "--open",
         action="store_true",
@@ -98,6 +78,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--plot", metavar="PNG", help="draw the correspondence into this picture")
     p.add_argument("--json", metavar="PATH", help="write the result (cost, correspondence) as JSON")
+    add_config_options(p)
     p.set_defaults(func=cmd_match)
 
     p = sub.add_parser(
@@ -166,7 +147,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 def _add_points(p: argparse.ArgumentParser, default: int = DEFAULT_POINTS) -> None:
     p.add_argument(
-        "--points",
+        "--n-points",
+        dest="points",
         type=points_int,
         default=default,
         metavar="N",
@@ -199,30 +181,29 @@ def cmd_match(args: argparse.Namespace) -> int:
 
     if args.plot:
         check_figure_path(args.plot)
+    config = config_from_args(args)
     closed = not args.open
-    a = load_shape(args.a, n_points=args.points, closed=closed)
-    b = load_shape(args.b, n_points=args.points, closed=closed)
-    res = match(
-        a.points,
-        b.points,
-        closed=closed,
-        weight=args.weight,
-        occlusion=args.occlusion,
-        n_trees=args.trees,
-        split=args.split,
-    )
+    a = load_shape(args.a, n_points=None, closed=closed)
+    b = load_shape(args.b, n_points=None, closed=closed)
+    res = match(a.points, b.points, config, closed=closed)
     kind = "closed" if closed else "open"
-    info(f"A: {args.a} ({a.points.shape[0]} points, {kind})")
-    info(f"B: {args.b} ({b.points.shape[0]} points, {kind})")
+    info(f"A: {args.a} ({res.a.shape[0]} points, {kind})")
+    info(f"B: {args.b} ({res.b.shape[0]} points, {kind})")
+    info(f"configuration: preset {preset_of(args)} ({config.describe()})")
     info(f"cost: {res.cost:.12g}")
-    if args.trees > 1:
+    if config.symmetrize != "none":
+        back = "n/a" if res.backward_cost is None else f"{res.backward_cost:.12g}"
+        info(f"  psi(A, B) = {res.forward_cost:.12g}, psi(B, A) = {back} ({config.symmetrize})")
+    if config.n_trees > 1:
         costs = ", ".join(f"{c:.6g}" for c in res.costs)
-        info(f"best shape-tree: #{res.tree_index} of {args.trees} (costs: {costs})")
+        info(f"best shape-tree: #{res.tree_index} of {config.n_trees} (costs: {costs})")
+    if res.mirrored:
+        info("the mirrored A matched best")
     if res.replaced:
         info(f"replaced parts ({len(res.replaced)}):")
         for a0, a1, b0, b1 in res.replaced:
             info(f"  A{_fmt_range(a0, a1)} <-> B{_fmt_range(b0, b1)}")
-    elif args.occlusion is not None:
+    elif config.occlusion is not None:
         info("replaced parts: none")
     if args.plot:
         plot_match(
@@ -239,14 +220,15 @@ def cmd_match(args: argparse.Namespace) -> int:
                 "a": args.a,
                 "b": args.b,
                 "closed": closed,
-                "n_points": args.points,
-                "weight": args.weight,
-                "occlusion": args.occlusion,
-                "n_trees": args.trees,
-                "split": args.split,
+                "preset": preset_of(args),
+                "config": config.as_dict(),
                 "cost": res.cost,
+                "forward_cost": res.forward_cost,
+                "backward_cost": res.backward_cost,
                 "costs": res.costs,
                 "tree_index": res.tree_index,
+                "mirrored": res.mirrored,
+                "phase": res.phase,
                 "replaced": res.replaced,
                 "a_points": res.a,
                 "b_points": res.b,

@@ -8,6 +8,7 @@ import numpy as np
 
 from shapetree._errors import ShapeTreeError
 from shapetree.demo._shapes import demo_shape, demo_shapes
+from shapetree.matching import MatchConfig, resolve_config
 
 __all__ = ["Candidate", "DemoRanking", "demo_ranking", "similarity"]
 
@@ -85,8 +86,9 @@ def _short(name: str) -> str:
 
 def demo_ranking(
     query: str = "G",
+    config: MatchConfig | str | None = None,
     *,
-    n_points: int = 80,
+    n_points: int = 120,
     scale: float = 0.04,
     copies: int = 2,
     seed: int = 0,
@@ -97,15 +99,17 @@ def demo_ranking(
     The targets are: ``copies`` random deformations of the query (noise ``scale`` on its
     shape-tree's Bookstein coordinates, then rotated, rescaled, shifted and started at
     another point, none of which the cost sees), one equally deformed copy of another
-    letter, and all other demo shapes. Each is matched with
-    :func:`shapetree.matching.match_cost` (closed curves, every cyclic alignment).
+    letter, and all other demo shapes. Each cost is ``match(query, target, config).cost``
+    (computed for all targets at once by :func:`shapetree.retrieval.distance_matrix`).
 
     Parameters
     ----------
     query : str, default "G"
         A demo shape name or a single character (its glyph).
-    n_points : int, default 80
-        Points per curve.
+    config : MatchConfig, str or None
+        Matcher configuration or preset name (default: the ``general`` preset).
+    n_points : int, default 120
+        Points per drawn curve (the configuration then resamples them).
     scale : float, default 0.04
         Deformation noise (Bookstein units).
     copies : int, default 2
@@ -119,9 +123,7 @@ def demo_ranking(
     DemoRanking
         Candidates sorted by cost.
     """
-    from tqdm.auto import tqdm
-
-    from shapetree.matching import match_cost, prepare_model, prepare_target
+    from shapetree.retrieval import distance_matrix
     from shapetree.tree import build_shape_tree, deform
 
     qname = f"glyph-{query}" if len(query) == 1 else query
@@ -162,13 +164,19 @@ def demo_ranking(
         if name != qname:
             kind = "glyph" if name.startswith("glyph-") else "drawn shape"
             cands.append(Candidate(_short(name), kind, pts))
-    model = prepare_model(q, closed=True)
-    for c in tqdm(cands, desc=f"matching {qs}", unit="shape", disable=not progress):
-        c.cost = match_cost(model, prepare_target(c.points, closed=True))
+    costs = distance_matrix([q], [c.points for c in cands], config, progress=progress)[0]
+    for c, cost in zip(cands, costs):
+        c.cost = float(cost)
     cands.sort(key=lambda c: c.cost)
     return DemoRanking(
         qname,
         q,
         cands,
-        {"n_points": n_points, "scale": scale, "copies": copies, "seed": seed},
+        {
+            "n_points": n_points,
+            "scale": scale,
+            "copies": copies,
+            "seed": seed,
+            "config": resolve_config(config).as_dict(),
+        },
     )

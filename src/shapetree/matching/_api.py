@@ -141,7 +141,8 @@ def _directed(
     targets = target_curves(b, config, closed=closed, name=names[1])
     kw = dict(
         closed=closed,
-        n_trees=config.n_trees,
+        # an open curve has one shape-tree per midpoint rule (its ends are fixed)
+        n_trees=config.n_trees if closed else min(config.n_trees, 2),
         split=config.split,
         weight=config.weight,
         length_power=config.length_power,

@@ -62,7 +62,8 @@ class MatchConfig:
         replacement.
     n_trees : int
         Shape-trees of the model tried (different start points); the best is kept (§3:
-        "we usually compute matchings using 2 to 4 different shape-trees").
+        "we usually compute matchings using 2 to 4 different shape-trees"). An open curve
+        has at most two (its ends are fixed: one tree per midpoint rule).
     split : {"half", "best"}
         Midpoint rule of the shape-trees (§2).
     mirror : bool
