@@ -26,6 +26,7 @@ def mirror_curve(points: ArrayLike, *, closed: bool = True) -> np.ndarray:
     Parameters
     ----------
     points : array_like, shape (n, 2)
+        Any curve :func:`shapetree.curves.as_curve` accepts.
     closed : bool
         Closed curves are also reversed (``out[i] = mirror(points[n - 1 - i])``) so a
         counter-clockwise curve stays counter-clockwise (matching assumes both curves have
@@ -35,7 +36,7 @@ def mirror_curve(points: ArrayLike, *, closed: bool = True) -> np.ndarray:
     -------
     ndarray, shape (n, 2)
     """
-    p = np.asarray(points, dtype=np.float64) * np.array([-1.0, 1.0])
+    p = as_curve(points, closed=closed, name="curve to mirror") * np.array([-1.0, 1.0])
     return np.ascontiguousarray(p[::-1] if closed else p)
 
 
