@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from shapetree import ShapeTreeError
-from shapetree.detection import chain_strokes, load_model, make_model, outline_strokes
+from shapetree.detection import load_model, make_model
+from shapetree.detection._model import chain_strokes, outline_strokes
 
 
 def _two_strokes() -> np.ndarray:
@@ -61,3 +62,36 @@ def test_make_model_free_segments() -> None:
         make_model(sq, free=[True, True])
     with pytest.raises(ShapeTreeError):
         make_model(sq, free=[True] * 4)
+
+
+def _png_header_only(path, width: int, height: int):
+    """A PNG whose header claims ``width x height`` grey pixels (a few hundred bytes)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
+    png += chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b"")
+    path.write_bytes(png)
+    return path
+
+
+def test_model_drawings_obey_the_pixel_limit(tmp_path, monkeypatch) -> None:
+    """Model drawings are opened through curves._image.open_image: the size is checked
+    from the header, before any pixel is decoded."""
+    from shapetree import ImageError
+
+    monkeypatch.delenv("SHAPETREE_MAX_PIXELS", raising=False)
+    big = _png_header_only(tmp_path / "model.png", 9000, 8000)  # 72 Mpx > 64 Mpx default
+    with pytest.raises(ImageError, match="image too large: 9000x8000"):
+        load_model(big)
+    monkeypatch.setenv("SHAPETREE_MAX_PIXELS", "100")
+    from PIL import Image
+
+    Image.fromarray(_two_strokes()).save(tmp_path / "small.png")  # 160 x 120 > 100 px
+    with pytest.raises(ImageError, match="over the limit of 100 pixels"):
+        load_model(tmp_path / "small.png")

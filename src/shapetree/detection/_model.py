@@ -15,10 +15,10 @@ from shapetree._errors import ImageError, ShapeTreeError
 __all__ = [
     "DetectionModel",
     "chain_strokes",
-    "outline_from_image",
-    "outline_strokes",
     "load_model",
     "make_model",
+    "outline_from_image",
+    "outline_strokes",
 ]
 
 _IMAGE_EXT = {".png", ".tif", ".tiff", ".pgm", ".pbm", ".bmp", ".jpg", ".jpeg", ".gif", ".ppm"}
@@ -54,10 +54,13 @@ class DetectionModel:
 
 
 def _read_grey(path: Path) -> NDArray[np.float64]:
-    from PIL import Image, UnidentifiedImageError
+    """A model drawing as grey levels; the pixel limit of ``curves._image`` applies."""
+    from PIL import UnidentifiedImageError
+
+    from shapetree.curves._image import open_image
 
     try:
-        with Image.open(path) as im:
+        with open_image(path) as im:
             return np.asarray(im.convert("L"), dtype=np.float64)
     except FileNotFoundError as exc:
         raise ImageError(f"model image not found: {path}") from exc
@@ -93,7 +96,9 @@ def outline_from_image(
     Raises
     ------
     ImageError
-        If the drawing has no ink or the outline is too small.
+        If the drawing cannot be read, has more pixels than
+        :func:`shapetree.curves._image.max_image_pixels` allows (checked before
+        decoding), has no ink, or the outline is too small.
     """
     comps, name = _ink_components(image, name)
     comp = comps[0]
