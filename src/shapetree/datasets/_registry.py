@@ -12,11 +12,11 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from shapetree._cache import cache_root
 from shapetree._errors import DatasetError
 
 __all__ = [
     "DEFAULT_DATA_DIR",
-    "DEFAULT_CACHE_DIR",
     "ETHZ_CLASSES",
     "REGISTRY",
     "DatasetSpec",
@@ -28,8 +28,6 @@ __all__ = [
 
 #: Default dataset root when ``$SHAPETREE_DATA`` is not set.
 DEFAULT_DATA_DIR = Path("~/.cache/shapetree/datasets")
-#: Default root of the extracted-curve cache when ``$SHAPETREE_CACHE`` is not set.
-DEFAULT_CACHE_DIR = Path("~/.cache/shapetree")
 
 
 def data_dir() -> Path:
@@ -53,12 +51,11 @@ def cache_dir() -> Path:
     Returns
     -------
     pathlib.Path
-        ``$SHAPETREE_CACHE/curves`` if ``$SHAPETREE_CACHE`` is set and non-empty,
-        else ``~/.cache/shapetree/curves``. The folder need not exist.
+        ``cache_root() / "curves"`` (:func:`shapetree._cache.cache_root`): that is
+        ``$SHAPETREE_CACHE/curves`` if ``$SHAPETREE_CACHE`` is set and non-empty, else
+        ``~/.cache/shapetree/curves``. The folder need not exist.
     """
-    env = os.environ.get("SHAPETREE_CACHE", "").strip()
-    base = Path(env).expanduser() if env else DEFAULT_CACHE_DIR.expanduser()
-    return base / "curves"
+    return cache_root() / "curves"
 
 
 @dataclass(frozen=True)
