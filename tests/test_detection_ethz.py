@@ -10,15 +10,9 @@ import numpy as np
 import pytest
 
 from shapetree import ImageError
-from shapetree.detection import (
-    detect,
-    detect_to_files,
-    dr_at_fppi,
-    dr_fppi_curve,
-    load_model,
-    outline_strokes,
-    recall_any,
-)
+from shapetree.detection import detect, detect_to_files, dr_at_fppi, dr_fppi_curve, load_model
+from shapetree.detection._ethz_eval import recall_any
+from shapetree.detection._model import outline_strokes
 
 _DEFAULT = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets"
 DATA = Path(os.environ.get("SHAPETREE_DATA", _DEFAULT))
@@ -124,6 +118,23 @@ def test_evaluate_ethz_cache_default_and_key(
     monkeypatch.setenv("SHAPETREE_CACHE", str(tmp_path / "c"))
     mine = ev.evaluate_ethz(DATA, cache_dir=tmp_path / "mine", **kw)
     assert Path(mine["cache_dir"]).parent == tmp_path / "mine"
+
+
+@needs_data
+def test_evaluate_ethz_pictures(tmp_path: Path) -> None:
+    """out_dir gets the DR/FPPI curves and the swan gallery, drawn by shapetree.plotting."""
+    from PIL import Image
+
+    import shapetree.detection._ethz_eval as ev
+
+    imgs = [("Swans", "aal"), ("Swans", "big")]
+    kw = dict(classes=["swans"], images=imgs, workers=1, progress=False, k=1)
+    ev.evaluate_ethz(DATA, out_dir=tmp_path / "fig", cache_dir=tmp_path / "c", **kw)
+    names = sorted(p.name for p in (tmp_path / "fig").iterdir())
+    assert names == ["ethz_dr_fppi.png", "ethz_gallery_swans.png"]
+    for name in names:
+        with Image.open(tmp_path / "fig" / name) as im:
+            assert im.format == "PNG" and im.width > 300
 
 
 @needs_data

@@ -12,15 +12,9 @@ from PIL import Image
 from shapetree import ShapeTreeError
 from shapetree.demo import demo_shape
 from shapetree.matching import match
-from shapetree.plotting import (
-    merge_replaced,
-    new_figure,
-    plot_deformations,
-    plot_match,
-    plot_ranking,
-    plot_tree,
-    save_figure,
-)
+from shapetree.plotting import plot_deformations, plot_match, plot_ranking, plot_tree, save_figure
+from shapetree.plotting._draw import merge_replaced
+from shapetree.plotting._save import new_figure
 from shapetree.tree import build_shape_tree
 
 
@@ -153,3 +147,124 @@ def test_saved_pictures_get_ordinary_permissions(tmp_path):
     mask = os.umask(0)
     os.umask(mask)
     assert out.stat().st_mode & 0o777 == 0o666 & ~mask
+
+
+# ------------------------------------------------------------------ retrieval pictures
+
+
+def _retrieval_set():
+    """Two classes of three shapes; shape 2 ("star" class) sits nearer the squares."""
+    curves = [demo_shape(n, n_points=24) for n in ("square", "square", "star")]
+    curves += [demo_shape("star", n_points=24)] * 3
+    labels = np.array(["sq", "sq", "sq", "st", "st", "st"])
+    D = np.abs(np.arange(6)[:, None] - np.arange(6)[None, :]).astype(float)
+    return D, labels, curves
+
+
+def test_plot_retrieval_grid_panels_and_wrong_matches(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from shapetree.plotting import plot_retrieval_grid
+
+    D, labels, curves = _retrieval_set()
+    fig = plot_retrieval_grid(D, labels, curves, n_top=3, title="t")
+    assert len(fig.axes) == 2 * 4  # one query per class, query + 3 neighbours
+    red = [ax for ax in fig.axes if ax.spines["left"].get_edgecolor()[:3] == (1.0, 0.0, 0.0)]
+    assert red  # the nearest shapes of another class are framed in red
+    assert fig.axes[0].get_title() == "query"
+    out = tmp_path / "grid.png"
+    assert plot_retrieval_grid(D, labels, curves, n_top=2, queries=[0], path=out) is not None
+    with Image.open(out) as im:
+        assert im.format == "PNG"
+    assert len(plot_retrieval_grid(D, labels, curves, n_top=99).axes) == 2 * 6  # n_top capped
+    assert plt.get_fignums() == []  # never registered with pyplot
+
+
+def test_plot_bullseye_per_class_bars(tmp_path):
+    from shapetree.plotting import plot_bullseye_per_class
+
+    per_class = {"a": 95.0, "b": 60.0, "c": 80.0}
+    fig = plot_bullseye_per_class(per_class, overall=78.3, second={"a": 99, "b": 70, "c": 90})
+    (ax,) = fig.axes
+    assert len(ax.patches) == 3
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["b", "c", "a"]  # worst first
+    assert ax.get_legend() is not None
+    out = plot_bullseye_per_class(per_class, path=tmp_path / "b.svg")
+    assert (tmp_path / "b.svg").read_text().lstrip().startswith("<?xml") and out is not None
+
+
+def test_file_forms_return_the_path_and_check_it_first(tmp_path):
+    from shapetree.plotting._retrieval import (
+        save_bullseye_per_class,
+        save_retrieval_grid,
+        save_search,
+    )
+
+    D, labels, curves = _retrieval_set()
+    out = save_retrieval_grid(D, labels, curves, tmp_path / "g.png", n_top=2)
+    assert out == tmp_path / "g.png" and out.stat().st_size > 1000
+    out = save_bullseye_per_class({"a": 50.0}, tmp_path / "sub" / "b.png", overall=50.0)
+    assert out == tmp_path / "sub" / "b.png" and out.is_file()
+    out = save_search(curves[0], curves[1:4], ["a\n0.1", "b\n0.2", "c\n0.3"], tmp_path / "s.png")
+    assert out == tmp_path / "s.png" and out.is_file()
+    with pytest.raises(ShapeTreeError, match="unsupported picture format"):
+        save_search(curves[0], curves[1:2], ["a"], tmp_path / "s.xyz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.png", "s.png", "sub"]
+
+
+# ------------------------------------------------------------------ detection pictures
+
+
+def _circle(n: int = 60, r: float = 30.0, c=(50.0, 50.0)) -> np.ndarray:
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return np.c_[c[0] + r * np.cos(t), c[1] + r * np.sin(t)]
+
+
+def test_plot_contours_one_line_per_contour():
+    from shapetree.plotting import plot_contours
+
+    contours = [_circle()[:25], _circle()[30:55]]
+    ax = plot_contours(contours, (100, 120))
+    lines = ax.get_lines()
+    assert len(lines) == 4  # each contour and its two endpoints
+    assert ax.get_xlim() == (0.0, 120.0) and ax.get_ylim() == (100.0, 0.0)  # y down
+    assert len(plot_contours(contours, endpoints=False).get_lines()) == 2
+
+
+def test_plot_detections_fig5_panels(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from shapetree.detection import detect_detailed
+    from shapetree.plotting import plot_detections
+
+    circle = _circle()
+    run = detect_detailed(circle, None, contours=[circle[:25], circle[30:55]], k=2)
+    assert run.detections
+    fig = plot_detections(run, np.ones((100, 100, 3)) * 0.5, n_show=2, title="circle")
+    assert len(fig.axes) == 4
+    assert [ax.get_title()[:3] for ax in fig.axes] == ["(a)", "(b)", "(c)", "(d)"]
+    legend = fig.axes[3].get_legend()
+    assert legend is not None and len(legend.get_texts()) == min(2, len(run.detections))
+    out = tmp_path / "det.png"
+    plot_detections(run, path=out)  # no image: the detections go over the edges (if any)
+    with Image.open(out) as im:
+        assert im.format == "PNG"
+    assert plt.get_fignums() == []
+
+
+def test_detect_to_files_picture_format_follows_the_extension(tmp_path):
+    """The picture is drawn by plotting and saved by save_figure (format from the name);
+    a bad picture name fails before any detection work."""
+    from shapetree.detection import detect_to_files
+
+    img = np.full((90, 90), 255, np.uint8)
+    yy, xx = np.mgrid[:90, :90]
+    img[(yy - 45) ** 2 + (xx - 45) ** 2 < 30**2] = 0  # a dark disc
+    Image.fromarray(img).save(tmp_path / "scene.png")
+    np.save(tmp_path / "model.npy", _circle(40, 10.0, (0.0, 0.0)))
+    out = tmp_path / "det.svg"
+    dets = detect_to_files(tmp_path / "model.npy", tmp_path / "scene.png", out_png=out, k=1)
+    assert isinstance(dets, list)
+    assert out.read_text().lstrip().startswith("<?xml")
+    with pytest.raises(ShapeTreeError, match="unsupported picture format"):
+        detect_to_files(tmp_path / "model.npy", tmp_path / "missing.png", out_png=tmp_path / "x.q")

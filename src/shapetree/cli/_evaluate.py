@@ -292,7 +292,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     """``shapetree detect``."""
     detect_to_files = require("shapetree.detection", "detect_to_files", "detection")
     if args.output:
-        from shapetree.plotting import check_figure_path
+        from shapetree.plotting._save import check_figure_path
 
         check_figure_path(args.output)
     try:

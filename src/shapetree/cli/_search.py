@@ -200,7 +200,7 @@ def _load_args(specs: list[str], args: argparse.Namespace) -> tuple[list[np.ndar
 def cmd_search(args: argparse.Namespace) -> int:
     """``shapetree search``."""
     from shapetree.matching._api import model_curve
-    from shapetree.plotting import check_figure_path
+    from shapetree.plotting._save import check_figure_path
     from shapetree.retrieval import distance_matrix
 
     if args.plot:
@@ -233,7 +233,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         )
         info(f"json: {path}")
     if args.plot:
-        from shapetree.retrieval._figures import plot_search
+        from shapetree.plotting._retrieval import save_search as plot_search
 
         path = plot_search(
             model_curve(query_points, config),

@@ -177,7 +177,8 @@ def _fmt_range(i0: int, i1: int) -> str:
 def cmd_match(args: argparse.Namespace) -> int:
     """``shapetree match``."""
     from shapetree.matching import match
-    from shapetree.plotting import check_figure_path, plot_match
+    from shapetree.plotting import plot_match
+    from shapetree.plotting._save import check_figure_path
 
     if args.plot:
         check_figure_path(args.plot)
@@ -242,7 +243,8 @@ def cmd_match(args: argparse.Namespace) -> int:
 
 def cmd_tree(args: argparse.Namespace) -> int:
     """``shapetree tree``."""
-    from shapetree.plotting import check_figure_path, plot_tree
+    from shapetree.plotting import plot_tree
+    from shapetree.plotting._save import check_figure_path
     from shapetree.tree import build_shape_tree
 
     shape = load_shape(args.shape, n_points=args.points, closed=not args.open)
@@ -260,7 +262,8 @@ def cmd_tree(args: argparse.Namespace) -> int:
 
 def cmd_deform(args: argparse.Namespace) -> int:
     """``shapetree deform``."""
-    from shapetree.plotting import check_figure_path, plot_deformations
+    from shapetree.plotting import plot_deformations
+    from shapetree.plotting._save import check_figure_path
     from shapetree.tree import build_shape_tree
 
     shapes = [load_shape(s, n_points=args.points, closed=not args.open) for s in args.shape]

@@ -23,12 +23,7 @@ from shapetree.detection._ethz_eval import (
     evaluate_ethz,
     recall_any,
 )
-from shapetree.detection._files import (
-    detect_to_files,
-    plot_contours,
-    plot_detection,
-    plot_detection_run,
-)
+from shapetree.detection._files import detect_to_files
 from shapetree.detection._model import (
     DetectionModel,
     chain_strokes,
@@ -51,9 +46,6 @@ __all__ = [
     "dr_fppi_curve",
     "evaluate_ethz",
     "recall_any",
-    "plot_contours",
-    "plot_detection",
-    "plot_detection_run",
     "contour_tables",
     "detect",
     "detect_detailed",

@@ -384,63 +384,22 @@ def evaluate_ethz(
 
 
 def _plots(out_dir: Path, root: Path, cls_list, curves, results, imgs) -> None:
-    import io
+    """DR/FPPI curves and the swan / bottle galleries (drawn by :mod:`shapetree.plotting`)."""
+    from shapetree.plotting._detection import save_ethz_figures
 
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    from ._edges import load_image
-
-    def save(fig: Any, name: str) -> None:
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=80)
-        plt.close(fig)
-        atomic_write_bytes(out_dir / name, buf.getvalue(), fsync=False)
-
-    fig, axs = plt.subplots(1, 2, figsize=(11, 4.5))
-    for ax, thr in zip(axs, (0.2, 0.5), strict=True):
-        for c in cls_list:
-            fppi, dr = curves[(c, thr)]
-            ax.plot(np.r_[0, fppi], np.r_[0, dr], label=c)
-        ax.axvline(0.3, color="0.7", lw=0.8)
-        ax.axvline(0.4, color="0.7", lw=0.8)
-        ax.set_xlim(0, 1.5)
-        ax.set_ylim(0, 1)
-        ax.set_xlabel("false positives per image")
-        ax.set_ylabel("detection rate")
-        ax.set_title(f"IoU >= {thr}")
-        ax.legend(fontsize=8)
-    fig.tight_layout()
-    save(fig, "ethz_dr_fppi.png")
+    galleries = {}
     for c in ("swans", "bottles"):
         if c not in cls_list:
             continue
         folder = ETHZ_CLASSES[c][0]
-        own = [(f, s) for f, s in imgs if f == folder]
-        if not own:
-            continue
-        ncol = 8
-        nrow = int(np.ceil(len(own) / ncol))
-        fig, axs = plt.subplots(nrow, ncol, figsize=(2.2 * ncol, 2.0 * nrow), squeeze=False)
-        for ax in axs.ravel():
-            ax.axis("off")
-        for ax, (f, s) in zip(axs.ravel(), own, strict=False):
-            img = load_image(root / f / f"{s}.jpg")
-            ax.imshow(img)
-            for g in _gt_boxes(root, f, s, c):
-                ax.plot(g[[0, 2, 2, 0, 0]], g[[1, 1, 3, 3, 1]], "g-", lw=1)
-            dets = results[(c, f, s)]["detections"]
-            if dets:
-                d = dets[0]
-                ip = np.asarray(d["image_points"])
-                mt = np.asarray(d["matched"], bool)
-                cl = np.vstack([ip, ip[:1]])
-                ax.plot(cl[:, 0], cl[:, 1], "r:", lw=0.8)
-                ax.plot(ip[mt, 0], ip[mt, 1], "r.", ms=3)
-                x1, y1, x2, y2 = d["bbox"]
-                ax.plot([x1, x2, x2, x1, x1], [y1, y1, y2, y2, y1], "r--", lw=0.8)
-            ax.set_title(s, fontsize=7)
-        fig.tight_layout()
-        save(fig, f"ethz_gallery_{c}.png")
+        galleries[c] = [
+            (
+                s,
+                root / f / f"{s}.jpg",
+                _gt_boxes(root, f, s, c),
+                (results[(c, f, s)]["detections"] or [None])[0],
+            )
+            for f, s in imgs
+            if f == folder
+        ]
+    save_ethz_figures(out_dir, curves, galleries)

@@ -198,7 +198,8 @@ def evaluate(
         )
     pictures: list[str] = []
     if out_dir is not None:
-        from shapetree.retrieval._figures import plot_bullseye_per_class, plot_retrieval_grid
+        from shapetree.plotting._retrieval import save_bullseye_per_class as plot_bullseye_per_class
+        from shapetree.plotting._retrieval import save_retrieval_grid as plot_retrieval_grid
 
         out = Path(out_dir)
         pictures.append(
