@@ -31,16 +31,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, machine, write_json  # noqa: E402
 
 from shapetree.curves._image import open_image  # noqa: E402
-from shapetree.detection import (  # noqa: E402
-    DetectParams,
-    dr_at_fppi,
-    dr_fppi_curve,
-    evaluate_ethz,
-    outline_dif,
-)
+from shapetree.detection import DetectParams, dr_at_fppi, dr_fppi_curve, evaluate_ethz  # noqa: E402
 from shapetree.detection._detect import frame_term  # noqa: E402
 from shapetree.detection._ethz_eval import ETHZ_CLASSES, _gt_boxes, _images, ethz_root  # noqa: E402
 from shapetree.detection._model import load_model  # noqa: E402
+from shapetree.geometry import outline_dif  # noqa: E402
 
 FRAME = (0.0, 0.025, 0.05, 0.075, 0.1, 0.15, 0.2)
 CHECK = (0.0, 0.05, 0.1, 0.2, 0.4, 0.8)

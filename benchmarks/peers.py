@@ -35,9 +35,10 @@ from _common import RESULTS, machine, write_json  # noqa: E402
 
 from shapetree import datasets  # noqa: E402
 from shapetree._atomic import atomic_open  # noqa: E402
+from shapetree._bench import PAPER_TABLES  # noqa: E402
 from shapetree._cache import cache_root  # noqa: E402
 from shapetree.curves import resample  # noqa: E402
-from shapetree.retrieval import PAPER_TABLES, evaluate, kimia_ranks  # noqa: E402
+from shapetree.retrieval import evaluate, kimia_ranks  # noqa: E402
 
 PEERS = ("hu", "shape_context", "fdasrsf")
 

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from shapetree.cli import main
-from shapetree.demo import demo_shape, similarity
+from shapetree.demo import demo_shape
+from shapetree.demo._run import similarity
 from shapetree.tree import build_shape_tree, deform
 
 NAMES = ["star", "square", "triangle", "hand", "leaf", "glyph-G"]

@@ -20,7 +20,7 @@ from skimage.draw import polygon2mask
 from shapetree import DatasetError
 from shapetree import datasets as ds
 from shapetree.curves import signed_area
-from shapetree.datasets._registry import ETHZ_CLASSES
+from shapetree.datasets._registry import ETHZ_CLASSES, REGISTRY, cache_dir, get_spec
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("SHAPETREE_DATA", str(REPO.parent / "shared" / "datasets")))
@@ -93,25 +93,25 @@ def test_data_dir_env_and_default(monkeypatch: pytest.MonkeyPatch, tmp_path: Pat
 
 def test_cache_dir_env_and_default(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("SHAPETREE_CACHE", str(tmp_path))
-    assert ds.cache_dir() == tmp_path / "curves"
+    assert cache_dir() == tmp_path / "curves"
     monkeypatch.delenv("SHAPETREE_CACHE")
-    assert ds.cache_dir() == Path("~/.cache/shapetree/curves").expanduser()
+    assert cache_dir() == Path("~/.cache/shapetree/curves").expanduser()
 
 
 def test_registry_entries() -> None:
-    assert list(ds.REGISTRY) == ["mpeg7", "kimia99", "swedish_leaf", "ethz_shape"]
+    assert list(REGISTRY) == ["mpeg7", "kimia99", "swedish_leaf", "ethz_shape"]
     expected = {"mpeg7": (1400, 70), "kimia99": (99, 9), "swedish_leaf": (1125, 15)}
     expected["ethz_shape"] = (255, 5)
     for name, (n, k) in expected.items():
-        spec = ds.get_spec(name)
+        spec = get_spec(name)
         assert (spec.n_images, spec.n_classes) == (n, k)
         assert spec.source.url.startswith("http") and spec.source.citation
         assert spec.description and spec.files
-    assert ds.get_spec("mpeg7").source.archive == "rar"
-    assert len(ds.get_spec("mpeg7").source.sha256) == 64
-    assert len(ds.get_spec("ethz_shape").source.sha1) == 40
+    assert get_spec("mpeg7").source.archive == "rar"
+    assert len(get_spec("mpeg7").source.sha256) == 64
+    assert len(get_spec("ethz_shape").source.sha1) == 40
     with pytest.raises(DatasetError, match="unknown dataset 'nope'"):
-        ds.get_spec("nope")
+        get_spec("nope")
 
 
 # ----------------------------------------------------------------------------- available
@@ -119,7 +119,7 @@ def test_registry_entries() -> None:
 
 def test_available_real(real: Path) -> None:
     infos = {i.name: i for i in ds.available()}
-    assert set(infos) == set(ds.REGISTRY)
+    assert set(infos) == set(REGISTRY)
     for info in infos.values():
         assert info.present and info.complete, info
         assert info.count == info.expected
@@ -153,7 +153,7 @@ def test_labels_mpeg7(real: Path) -> None:
 def test_labels_kimia99(real: Path) -> None:
     names, labels, _ = ds.load_labels("kimia99")
     counts = Counter(labels.tolist())
-    assert len(names) == 99 and set(counts) == set(ds.get_spec("kimia99").classes)
+    assert len(names) == 99 and set(counts) == set(get_spec("kimia99").classes)
     assert set(counts.values()) == {11}
     lab = dict(zip(names, labels.tolist(), strict=True))
     assert lab["kk0728.png"] == "ray" and lab["f16.png"] == "airplane"
@@ -167,7 +167,7 @@ def test_labels_swedish(real: Path) -> None:
     assert len(names) == 1125 and len(counts) == 15 and set(counts.values()) == {75}
     lab = dict(zip(names, labels.tolist(), strict=True))
     assert lab["l1nr001.png"] == "Ulmus carpinifolia" and lab["l10nr026.png"] == "Sorbus aucuparia"
-    assert set(counts) == set(ds.get_spec("swedish_leaf").classes)
+    assert set(counts) == set(get_spec("swedish_leaf").classes)
 
 
 # ----------------------------------------------------------------------------- load
@@ -348,7 +348,7 @@ def test_changed_file_invalidates_cache_and_corrupt_cache_is_ignored(tmp_env: Pa
     os.utime(folder / "s0.png", ns=(1, 1))
     b = ds.load("kimia99", progress=False, n_points=30)
     assert signed_area(b.curves[0]) > 2 * signed_area(a.curves[0])
-    for f in ds.cache_dir().glob("*.npz"):
+    for f in cache_dir().glob("*.npz"):
         f.write_bytes(b"garbage")
     with pytest.warns(UserWarning, match="curve cache"):
         c = ds.load("kimia99", progress=False, n_points=30)

@@ -7,15 +7,9 @@ import pytest
 
 from shapetree import ShapeTreeError
 from shapetree.curves import signed_area
-from shapetree.demo import (
-    demo_ranking,
-    demo_shape,
-    demo_shape_names,
-    demo_shapes,
-    glyph_outline,
-    hand,
-    similarity,
-)
+from shapetree.demo import demo_ranking, demo_shape, demo_shape_names, demo_shapes, glyph_outline
+from shapetree.demo._run import similarity
+from shapetree.demo._shapes import hand
 
 
 def test_demo_shapes_are_valid_closed_curves():

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from shapetree import ShapeTreeError
-from shapetree.detection import Detection, detect, make_model, outline_dif
+from shapetree.detection import Detection, detect, make_model
 from shapetree.detection._stitch import _dif
+from shapetree.geometry import outline_dif
 
 
 def _shape(t: np.ndarray) -> np.ndarray:

@@ -9,12 +9,12 @@ from shapetree import ShapeTreeError
 from shapetree.retrieval import (
     bullseye,
     bullseye_per_class,
-    bullseye_per_query,
     combine,
     kimia_ranks,
     nn_accuracy_splits,
     ranked_neighbours,
 )
+from shapetree.retrieval._protocols import bullseye_per_query
 
 
 def _block_matrix(labels: np.ndarray, noise: float = 0.0, seed: int = 0) -> np.ndarray:

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from shapetree import ShapeTreeError
-from shapetree.retrieval import bullseye, knn_affinity, tpg_rerank
+from shapetree.retrieval import bullseye, tpg_rerank
+from shapetree.retrieval._rerank import knn_affinity
 
 
 def _points_on_chains(

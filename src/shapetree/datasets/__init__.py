@@ -7,45 +7,31 @@ dataset; :func:`fetch` downloads, verifies and installs them there, and
 
 :func:`load` turns a silhouette set into closed curves (cached on disk under
 ``$SHAPETREE_CACHE/curves``, default ``~/.cache/shapetree/curves``);
-:func:`load_ethz` lists the ETHZ images with their edge maps and boxes.
+:func:`load_labels` reads only the file names and classes; :func:`load_ethz` lists the
+ETHZ images with their edge maps and boxes, :func:`ethz_model_path` a class's model drawing.
 """
 
-from shapetree.datasets._ethz import EthzImage, ethz_model_path, ethz_root, load_ethz
+from shapetree.datasets._ethz import EthzImage, ethz_model_path, load_ethz
 from shapetree.datasets._fetch import fetch
 from shapetree.datasets._load import (
     DatasetInfo,
     ShapeDataset,
     available,
-    dataset_path,
     format_available,
     load,
     load_labels,
 )
-from shapetree.datasets._registry import (
-    REGISTRY,
-    DatasetSpec,
-    Source,
-    cache_dir,
-    data_dir,
-    get_spec,
-)
+from shapetree.datasets._registry import data_dir
 
 __all__ = [
-    "REGISTRY",
     "DatasetInfo",
-    "DatasetSpec",
     "EthzImage",
     "ShapeDataset",
-    "Source",
     "available",
-    "cache_dir",
     "data_dir",
-    "dataset_path",
     "ethz_model_path",
-    "ethz_root",
     "fetch",
     "format_available",
-    "get_spec",
     "load",
     "load_ethz",
     "load_labels",

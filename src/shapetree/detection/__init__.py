@@ -1,9 +1,12 @@
 """Matching a deformable model to cluttered images (paper §4).
 
-Stages: a soft edge map (:func:`edge_map`, or a stored Pb map via
-:func:`load_edges`), contour tracing (:func:`trace_contours`), contour-vs-model
-tables of §3 (:func:`contour_tables`), and the stitching DP with gaps
-(:func:`detect`).
+Stages: a soft edge map (:func:`edge_map`, or a stored Pb map via :func:`load_edges`),
+contour tracing (:func:`trace_contours`), contour-vs-model tables of §3
+(:func:`contour_tables`), and the stitching DP with gaps (:func:`detect`, or
+:func:`detect_detailed` to keep the edge map and contours). Models come from outline
+drawings, point files or arrays (:func:`load_model`, :func:`make_model`). The ETHZ Shape
+Classes protocol is :func:`evaluate_ethz` (DR against FPPI, :func:`dr_fppi_curve`).
+Pictures are drawn by :func:`shapetree.plotting.plot_detections`.
 """
 
 from shapetree.detection._contours import trace_contours
@@ -13,24 +16,15 @@ from shapetree.detection._detect import (
     DetectParams,
     detect,
     detect_detailed,
-    outline_dif,
 )
 from shapetree.detection._edges import edge_map, load_edges, load_image
-from shapetree.detection._ethz_eval import (
-    ETHZ_CLASSES,
-    dr_at_fppi,
-    dr_fppi_curve,
-    evaluate_ethz,
-    recall_any,
-)
+from shapetree.detection._ethz_eval import dr_at_fppi, dr_fppi_curve, evaluate_ethz
 from shapetree.detection._files import detect_to_files
 from shapetree.detection._model import (
     DetectionModel,
-    chain_strokes,
     load_model,
     make_model,
     outline_from_image,
-    outline_strokes,
 )
 from shapetree.detection._tables import contour_tables
 
@@ -39,23 +33,18 @@ __all__ = [
     "Detection",
     "DetectionModel",
     "DetectionRun",
-    "ETHZ_CLASSES",
-    "chain_strokes",
-    "detect_to_files",
-    "dr_at_fppi",
-    "dr_fppi_curve",
-    "evaluate_ethz",
-    "recall_any",
     "contour_tables",
     "detect",
     "detect_detailed",
+    "detect_to_files",
+    "dr_at_fppi",
+    "dr_fppi_curve",
     "edge_map",
+    "evaluate_ethz",
     "load_edges",
     "load_image",
     "load_model",
     "make_model",
-    "outline_dif",
     "outline_from_image",
-    "outline_strokes",
     "trace_contours",
 ]
