@@ -18,7 +18,8 @@ across images and scales:
   with ``|q - r| <= tau`` costs the sum plus
   ``lam * frac(a, c) * dif((M_a, M_b, M_c), (p, (q + r) / 2, s))``, with ``dif``
   the squared full Procrustes distance ``1 - |<z, w>|^2`` of the centred,
-  unit-size complex triangles (1 for a degenerate triangle);
+  unit-size complex triangles, computed by the project's one compiled ``dif``
+  (:mod:`shapetree.geometry._dif`; 1 for a triangle of zero size);
 * **gap**: a gap match leaves model interval ``b -> b'`` unmatched at cost
   ``gap_cost * sum of gap weights of its segments`` (the weights are the
   segments' arclength shares; 0 on an open model's artificial closing chord).
@@ -51,58 +52,30 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from shapetree.geometry._dif import helmert_dif, unit_helmert
+
 INF = 1e30
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
+def _shape(z1: complex, z2: complex, z3: complex) -> tuple[float, float, float]:
+    """Unit Helmert coordinates of the triangle ``(z1, z2, z3)`` (zero for a point)."""
+    return unit_helmert(z1.real, z1.imag, z2.real, z2.imag, z3.real, z3.imag)
+
+
+@nb.njit(cache=True)
 def _dif(z1: complex, z2: complex, z3: complex, w1: complex, w2: complex, w3: complex) -> float:
     """Squared full Procrustes distance between triangles (z1,z2,z3) and (w1,w2,w3)."""
-    zc = (z1 + z2 + z3) / 3.0
-    a1 = z1 - zc
-    a2 = z2 - zc
-    a3 = z3 - zc
-    wc = (w1 + w2 + w3) / 3.0
-    b1 = w1 - wc
-    b2 = w2 - wc
-    b3 = w3 - wc
-    na = a1.real**2 + a1.imag**2 + a2.real**2 + a2.imag**2 + a3.real**2 + a3.imag**2
-    nb_ = b1.real**2 + b1.imag**2 + b2.real**2 + b2.imag**2 + b3.real**2 + b3.imag**2
-    if na < 1e-12 or nb_ < 1e-12:
-        return 1.0
-    ip = a1 * np.conj(b1) + a2 * np.conj(b2) + a3 * np.conj(b3)
-    v = 1.0 - (ip.real**2 + ip.imag**2) / (na * nb_)
-    return v if v > 0.0 else 0.0
+    a1, a2r, a2i = _shape(z1, z2, z3)
+    b1, b2r, b2i = _shape(w1, w2, w3)
+    return helmert_dif(a1, a2r, a2i, b1, b2r, b2i)
 
 
-@nb.njit(cache=True, inline="always")
-def _norm_tri(z1: complex, z2: complex, z3: complex) -> tuple[complex, complex, complex, bool]:
-    """Centre a triangle and scale it to unit size (flag False if degenerate)."""
-    zc = (z1 + z2 + z3) / 3.0
-    a1 = z1 - zc
-    a2 = z2 - zc
-    a3 = z3 - zc
-    na = a1.real**2 + a1.imag**2 + a2.real**2 + a2.imag**2 + a3.real**2 + a3.imag**2
-    if na < 1e-12:
-        return a1, a2, a3, False
-    s = 1.0 / np.sqrt(na)
-    return a1 * s, a2 * s, a3 * s, True
-
-
-@nb.njit(cache=True, inline="always")
-def _difn(a1: complex, a2: complex, a3: complex, ok: bool, w1: complex, w2: complex, w3: complex):
-    """``_dif`` with the first triangle already normalised by ``_norm_tri``."""
-    if not ok:
-        return 1.0
-    wc = (w1 + w2 + w3) / 3.0
-    b1 = w1 - wc
-    b2 = w2 - wc
-    b3 = w3 - wc
-    nb_ = b1.real**2 + b1.imag**2 + b2.real**2 + b2.imag**2 + b3.real**2 + b3.imag**2
-    if nb_ < 1e-12:
-        return 1.0
-    ip = a1 * np.conj(b1) + a2 * np.conj(b2) + a3 * np.conj(b3)
-    v = 1.0 - (ip.real**2 + ip.imag**2) / nb_
-    return v if v > 0.0 else 0.0
+@nb.njit(cache=True)
+def _difn(a: tuple[float, float, float], w1: complex, w2: complex, w3: complex) -> float:
+    """``_dif`` with the first triangle already given by its shape ``a = _shape(...)``."""
+    b1, b2r, b2i = _shape(w1, w2, w3)
+    return helmert_dif(a[0], a[1], a[2], b1, b2r, b2i)
 
 
 @nb.njit(cache=True)
@@ -215,7 +188,7 @@ def _stitch_kernel(
             # direct compositions
             for l in range(1, L):
                 b = (a + l) % m
-                w1, w2, w3, wok = _norm_tri(M[a], M[b], M[c_end])
+                wsh = _shape(M[a], M[b], M[c_end])
                 nl = nbeam[a, l]
                 nr = nbeam[b, L - l]
                 if nl == 0 or nr == 0:
@@ -238,7 +211,7 @@ def _stitch_kernel(
                             continue
                         if L < m:
                             mid = 0.5 * (E[qi] + E[e_p[j]])
-                            c += lamf * _difn(w1, w2, w3, wok, E[e_p[i]], mid, E[e_q[j]])
+                            c += lamf * _difn(wsh, E[e_p[i]], mid, E[e_q[j]])
                         elif not near[e_q[j], e_p[i]]:
                             continue
                         info[0] = 1
@@ -259,10 +232,10 @@ def _stitch_kernel(
                     nr = min(nbeam[b2, lr], gap_beam)
                     fr1 = lam * frac[a, l1 + g]
                     fr2 = lam * frac[b, L - l1]
-                    u1, u2, u3, uok = _norm_tri(M[a], M[b], M[b2])
-                    v1, v2, v3, vok = _norm_tri(M[a], M[b2], M[c_end])
-                    x1, x2, x3, xok = _norm_tri(M[b], M[b2], M[c_end])
-                    y1, y2, y3, yok = _norm_tri(M[a], M[b], M[c_end])
+                    ush = _shape(M[a], M[b], M[b2])
+                    vsh = _shape(M[a], M[b2], M[c_end])
+                    xsh = _shape(M[b], M[b2], M[c_end])
+                    ysh = _shape(M[a], M[b], M[c_end])
                     if nl == 0 or nr == 0:
                         continue
                     cr0 = e_cost[beams[b2, lr, 0]]
@@ -285,17 +258,13 @@ def _stitch_kernel(
                             rj = E[e_p[j]]
                             sj = E[e_q[j]]
                             if L < m:
-                                t1 = fr1 * _difn(u1, u2, u3, uok, pi, qi, rj) + lamf * _difn(
-                                    v1, v2, v3, vok, pi, rj, sj
-                                )
-                                t2 = fr2 * _difn(x1, x2, x3, xok, qi, rj, sj) + lamf * _difn(
-                                    y1, y2, y3, yok, pi, qi, sj
-                                )
+                                t1 = fr1 * _difn(ush, pi, qi, rj) + lamf * _difn(vsh, pi, rj, sj)
+                                t2 = fr2 * _difn(xsh, qi, rj, sj) + lamf * _difn(ysh, pi, qi, sj)
                             else:
                                 if not near[e_q[j], e_p[i]]:
                                     continue
-                                t1 = fr1 * _difn(u1, u2, u3, uok, pi, qi, rj)
-                                t2 = fr2 * _difn(x1, x2, x3, xok, qi, rj, sj)
+                                t1 = fr1 * _difn(ush, pi, qi, rj)
+                                t2 = fr2 * _difn(xsh, qi, rj, sj)
                             c += t1 if t1 < t2 else t2
                             info[0] = 2
                             info[1] = i

@@ -1,7 +1,8 @@
 """Bookstein coordinates and the squared Procrustes distance between triangles (paper §2.1, §3).
 
 Points in the plane are handled as complex numbers ``x + iy`` internally; the public
-functions take and return ``(..., 2)`` float arrays.
+functions take and return ``(..., 2)`` float arrays. The ``dif`` functions are thin
+wrappers around the one compiled implementation in :mod:`shapetree.geometry._dif`.
 """
 
 from __future__ import annotations
@@ -9,12 +10,32 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from shapetree.geometry._dif import points_dif, triangle_dif_many
+
 
 def _as_complex(p: ArrayLike) -> np.ndarray:
     a = np.asarray(p, dtype=float)
     if a.shape[-1:] != (2,):
         raise ValueError(f"expected points with a last axis of length 2, got shape {a.shape}")
     return a[..., 0] + 1j * a[..., 1]
+
+
+def _as_points(p: ArrayLike) -> np.ndarray:
+    a = np.asarray(p, dtype=float)
+    if a.shape[-1:] != (2,):
+        raise ValueError(f"expected points with a last axis of length 2, got shape {a.shape}")
+    return a
+
+
+def _triangle_dif(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """Broadcast two ``(..., 3, 2)`` triangle arrays and call the compiled ``dif``."""
+    ta, tb = np.broadcast_arrays(ta, tb)
+    shape = ta.shape[:-2]
+    a = np.ascontiguousarray(ta.reshape(-1, 3, 2))
+    b = np.ascontiguousarray(tb.reshape(-1, 3, 2))
+    out = np.empty(a.shape[0])
+    triangle_dif_many(a, b, out)
+    return out.reshape(shape)[()]
 
 
 def _as_xy(z: np.ndarray) -> np.ndarray:
@@ -67,10 +88,11 @@ def from_bookstein(p1: ArrayLike, p2: ArrayLike, u: ArrayLike) -> np.ndarray:
 def procrustes_dif(u: ArrayLike, v: ArrayLike) -> np.ndarray:
     """Squared full Procrustes distance between two triangles given by Bookstein coordinates.
 
-    The triangles are ``(-0.5, 0), (0.5, 0), u`` and ``(-0.5, 0), (0.5, 0), v``, i.e. the
-    triangles ``(a_1, a_n, a_i)`` and ``(b_1, b_m, b_j)`` of eq. (1). With both triangles
+    The triangles are ``(-0.5, 0), u, (0.5, 0)`` and ``(-0.5, 0), v, (0.5, 0)``, i.e. the
+    triangles ``(a_1, a_i, a_n)`` and ``(b_1, b_j, b_m)`` of eq. (1). With both triangles
     centred and scaled to unit size, ``dif = 1 - |<z, w>|^2``: 0 for similar triangles,
-    at most 1. Reflections are *not* factored out.
+    at most 1. Reflections are *not* factored out. Computed by the one compiled ``dif``
+    (:mod:`shapetree.geometry._dif`).
 
     Parameters
     ----------
@@ -80,10 +102,13 @@ def procrustes_dif(u: ArrayLike, v: ArrayLike) -> np.ndarray:
     -------
     ndarray, shape (...)
     """
-    zu, zv = _as_complex(u), _as_complex(v)
-    num = np.abs(0.5 + (2.0 / 3.0) * np.conj(zu) * zv) ** 2
-    den = (0.5 + (2.0 / 3.0) * np.abs(zu) ** 2) * (0.5 + (2.0 / 3.0) * np.abs(zv) ** 2)
-    return np.maximum(1.0 - num / den, 0.0)
+    uu, vv = np.broadcast_arrays(_as_points(u), _as_points(v))
+    shape = uu.shape[:-1]
+    base = np.zeros(shape + (3, 2))
+    base[..., 0, 0], base[..., 2, 0] = -0.5, 0.5
+    ta, tb = base.copy(), base
+    ta[..., 1, :], tb[..., 1, :] = uu, vv
+    return _triangle_dif(ta, tb)
 
 
 def helmert(tri: ArrayLike) -> np.ndarray:
@@ -113,21 +138,25 @@ def triangle_dif(tri_a: ArrayLike, tri_b: ArrayLike) -> np.ndarray:
 
     Equals :func:`procrustes_dif` of the middles' Bookstein coordinates, but is defined
     for every triangle: when ``first == last`` it still compares shapes, and a triangle
-    whose three points coincide is at distance 1 from everything.
+    whose three points coincide has no shape: it is at distance
+    :data:`~shapetree.geometry.DEGENERATE_DIF` ``= 1`` from everything (itself included).
+    Computed by the one compiled ``dif`` (:mod:`shapetree.geometry._dif`).
 
     Parameters
     ----------
     tri_a, tri_b : array_like, shape (..., 3, 2)
-        Triangles as ``(first, middle, last)`` points.
+        Triangles as ``(first, middle, last)`` points (broadcast together).
 
     Returns
     -------
     ndarray, shape (...)
         Values in ``[0, 1]``.
     """
-    ha, hb = helmert(tri_a), helmert(tri_b)
-    ip = np.sum(np.conj(ha) * hb, axis=-1)
-    return np.clip(1.0 - np.abs(ip) ** 2, 0.0, 1.0)
+    ta, tb = np.asarray(tri_a, dtype=float), np.asarray(tri_b, dtype=float)
+    for t in (ta, tb):
+        if t.shape[-2:] != (3, 2):
+            raise ValueError(f"expected triangles of shape (..., 3, 2), got shape {t.shape}")
+    return _triangle_dif(ta, tb)
 
 
 def outline_dif(points_a: ArrayLike, points_b: ArrayLike) -> float:
@@ -135,7 +164,9 @@ def outline_dif(points_a: ArrayLike, points_b: ArrayLike) -> float:
 
     The ``n``-point form of :func:`triangle_dif`: ``1 - |<z, w>|^2`` with ``z``, ``w``
     the centred, unit-size complex coordinates. 0 when one set is a similarity transform
-    of the other; a set whose points all coincide is at distance 1 from everything.
+    of the other; a set whose points all coincide has no shape and is at distance
+    :data:`~shapetree.geometry.DEGENERATE_DIF` ``= 1`` from everything. Computed by the
+    one compiled ``dif`` (:mod:`shapetree.geometry._dif`).
 
     Parameters
     ----------
@@ -146,11 +177,10 @@ def outline_dif(points_a: ArrayLike, points_b: ArrayLike) -> float:
     -------
     float
     """
-    z, w = _as_complex(points_a), _as_complex(points_b)
-    if z.shape != w.shape or z.ndim != 1:
-        raise ValueError(f"expected two (n, 2) point sets, got shapes {z.shape} and {w.shape}")
-    z, w = z - z.mean(), w - w.mean()
-    nz, nw = np.linalg.norm(z), np.linalg.norm(w)
-    if nz == 0 or nw == 0:
-        return 1.0
-    return float(np.clip(1.0 - abs(np.vdot(z, w)) ** 2 / (nz * nw) ** 2, 0.0, 1.0))
+    a, b = _as_points(points_a), _as_points(points_b)
+    if a.shape != b.shape or a.ndim != 2:
+        raise ValueError(
+            f"expected two (n, 2) point sets, got shapes {a.shape[:-1]} and {b.shape[:-1]}"
+        )
+    a, b = np.ascontiguousarray(a.T), np.ascontiguousarray(b.T)
+    return float(points_dif(a[0], a[1], b[0], b[1]))
