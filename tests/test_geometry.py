@@ -95,3 +95,92 @@ def test_outline_dif_is_the_n_point_triangle_dif() -> None:
     assert outline_dif(pts, np.ones((12, 2))) == 1.0
     with pytest.raises(ValueError, match="point sets"):
         outline_dif(pts, pts[:5])
+
+
+# --- the one compiled dif -------------------------------------------------------------
+
+
+def _exact_dif(a: np.ndarray, b: np.ndarray) -> float:
+    """dif of two point sets in exact rational arithmetic (coordinates taken as given)."""
+    from fractions import Fraction
+
+    def centred(p):
+        pts = [(Fraction(x), Fraction(y)) for x, y in p]
+        cx = sum(x for x, _ in pts) / len(pts)
+        cy = sum(y for _, y in pts) / len(pts)
+        return [(x - cx, y - cy) for x, y in pts]
+
+    z, w = centred(a), centred(b)
+    nz = sum(x * x + y * y for x, y in z)
+    nw = sum(x * x + y * y for x, y in w)
+    # <z, w> = sum conj(z_i) w_i
+    re = sum(zx * wx + zy * wy for (zx, zy), (wx, wy) in zip(z, w, strict=True))
+    im = sum(zx * wy - zy * wx for (zx, zy), (wx, wy) in zip(z, w, strict=True))
+    return float(1 - (re * re + im * im) / (nz * nw))
+
+
+def test_compiled_dif_equals_the_oracle_and_the_stitching_dif():
+    """geometry's public dif, the stitching DP's and the test oracle's literal one agree,
+    degenerate triangles included (zero size: DEGENERATE_DIF = 1)."""
+    from shapetree.detection._stitch import _dif as stitch_dif
+    from shapetree.geometry import DEGENERATE_DIF
+    from shapetree.matching._reference import _dif as oracle_dif
+
+    rng = np.random.default_rng(7)
+    tris = [rng.normal(size=(3, 2)) for _ in range(30)]
+    p = rng.normal(size=2)
+    tris += [np.array([p, p, p]), np.array([p, p + 1, p]), np.array([p, p, p + 1])]
+    for a in tris:
+        for b in tris[::3]:
+            want = oracle_dif(a, b)
+            assert float(triangle_dif(a, b)) == pytest.approx(want, abs=1e-12)
+            za, zb = (t[:, 0] + 1j * t[:, 1] for t in (a, b))
+            assert stitch_dif(*za, *zb) == pytest.approx(want, abs=1e-12)
+    assert float(triangle_dif(tris[-3], tris[-3])) == DEGENERATE_DIF == 1.0
+
+
+def test_small_dif_keeps_its_relative_precision():
+    """Lagrange's form has no cancellation: a dif of ~1e-20 is right to ~1e-12 relative,
+    where 1 - |<z, w>|^2 would give 0 or rounding noise."""
+    a = np.array([[0.0, 0.0], [0.5, 0.75], [1.0, 0.0]])
+    for eps in (1e-6, 1e-8, 1e-10):
+        b = a.copy()
+        b[1, 1] += eps
+        got = float(triangle_dif(a, b))
+        assert got == pytest.approx(_exact_dif(a, b), rel=1e-9)
+        assert got > 0
+    pts = np.random.default_rng(5).normal(size=(9, 2))
+    moved = pts.copy()
+    moved[3, 0] += 1e-9
+    from shapetree.geometry import outline_dif
+
+    assert outline_dif(pts, moved) == pytest.approx(_exact_dif(pts, moved), rel=1e-6)
+
+
+def test_procrustes_dif_broadcasts_and_checks_shapes():
+    rng = np.random.default_rng(2)
+    u = rng.normal(size=(4, 5, 2))
+    v = rng.normal(size=2)
+    d = procrustes_dif(u, v)
+    assert d.shape == (4, 5)
+    assert d[1, 2] == pytest.approx(float(procrustes_dif(u[1, 2], v)), abs=1e-15)
+    assert np.ndim(procrustes_dif([0.1, 0.2], [0.3, 0.4])) == 0
+    with pytest.raises(ValueError, match="length 2"):
+        procrustes_dif(np.zeros(3), np.zeros(2))
+    with pytest.raises(ValueError, match=r"\(\.\.\., 3, 2\)"):
+        triangle_dif(np.zeros((4, 2)), np.zeros((3, 2)))
+    tri = rng.normal(size=(6, 3, 2))
+    np.testing.assert_allclose(
+        triangle_dif(tri, tri[0]), [float(triangle_dif(t, tri[0])) for t in tri], atol=1e-15
+    )
+
+
+def test_geometry_dif_functions_share_the_flags():
+    from numba.core.cpu import FastMathOptions
+
+    from shapetree.geometry import FASTMATH, _dif
+
+    for name in ("lagrange_form", "unit_helmert", "helmert_dif", "points_dif", "weighted_dif"):
+        fn = getattr(_dif, name)
+        assert FastMathOptions(fn.targetoptions["fastmath"]).flags == set(FASTMATH)
+        assert fn.targetoptions["nogil"] and fn._cache.__class__.__name__ != "NullCache"

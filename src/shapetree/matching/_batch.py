@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from shapetree._errors import ShapeTreeError
-from shapetree.matching._kernels import closed_costs
+from shapetree.matching._kernels import closed_costs, finite_or_inf
 from shapetree.matching._match import MatchParams, _bands, _buffers, _check_pair
 from shapetree.matching._prepare import Model, Target
 
@@ -114,6 +114,7 @@ class ModelStack:
         closed_costs(
             *self._arrays,
             target.tri,
+            target.deg,
             target.g,
             target.blen,
             self.params.kernel_occlusion,
@@ -122,4 +123,4 @@ class ModelStack:
             out,
         )
         best = out.reshape(self.n_models, self.n_trees).min(axis=1).astype(np.float64)
-        return np.maximum(best, 0.0)
+        return np.maximum(finite_or_inf(best), 0.0)  # inf: no admissible matching

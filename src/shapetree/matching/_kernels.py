@@ -21,19 +21,35 @@ The loops run ``node -> L -> k -> s`` with ``s`` innermost: the minimum over the
 ``dif``
 -------
 ``dif`` is the squared full Procrustes distance between the model triangle
-``(a_start, a_mid, a_end)`` and the target triangle ``(b_s, b_{s+k}, b_{s+L})``. Each
-triangle is kept as its unit-size Helmert coordinates ``z = (z1, z2)`` (``h1 = (p3 - p1) /
-sqrt 2``, ``h2 = (2 p2 - p1 - p3) / sqrt 6``, divided by ``sqrt(|h1|^2 + |h2|^2)``),
-rotated so that ``z1`` is real and ``>= 0``. By Lagrange's identity for unit vectors of
-``C^2``,
+``(a_start, a_mid, a_end)`` and the target triangle ``(b_s, b_{s+k}, b_{s+L})``, computed
+by the project's one compiled implementation (:mod:`shapetree.geometry._dif`). Each
+triangle is kept as its unit-size Helmert coordinates ``z = (z1, z2)``
+(:func:`~shapetree.geometry._dif.unit_helmert`), rotated so that ``z1`` is real and
+``>= 0``. By Lagrange's identity for unit vectors of ``C^2``,
 
     dif = 1 - |<z_a, z_b>|^2 = |a1 z2 - a2 z1|^2,
 
 a sum of two squares with no cancellation, so the tables keep their relative precision
 in float32 too. The model's coordinates are scaled by ``sqrt(λ)`` once per node, so the
-inner loop adds ``wr^2 + wi^2`` with ``wr + i wi = sqrt(λ) (a1 z2 - a2 z1)``: four
-multiply-adds and two squares per entry. A target triangle whose three points coincide
-has no shape; it is given ``z = (1, 0)``, the shape of an evenly subdivided segment.
+inner loop adds :func:`~shapetree.geometry._dif.lagrange_form` of the scaled model
+coordinates and the target's: four multiply-adds and two squares per entry.
+
+A target triangle of zero size (its three points coincide) has no shape: its ``dif`` is
+:data:`~shapetree.geometry.DEGENERATE_DIF` (1) against every model triangle, as in the
+oracle. :func:`target_tables` stores it as ``z = (0, 0, 0)`` and flags its ``(L, k)``
+plane in ``deg``; the kernel scores flagged planes with
+:func:`~shapetree.geometry._dif.weighted_dif` (``λ`` for a zero-size triangle), the others
+with the branch-free linear form. A target without such triangles (nearly all) passes
+``deg=None``, and numba compiles a specialisation without that branch.
+
+Sentinel and fast-math
+----------------------
+The kernels are compiled with :data:`~shapetree.geometry.FASTMATH` (fast-math without
+``nnan`` / ``ninf``) and never store ``inf``: an entry with no admissible split (possible
+only in the pruned mode, when the children's bands cannot add up to ``L``) holds
+:data:`SENTINEL` (``1e30``, representable in float32; sums of two sentinels stay finite).
+Every reader at the Python boundary maps values ``>= SENTINEL / 2`` to ``inf``
+(:func:`finite_or_inf`).
 """
 
 from __future__ import annotations
@@ -41,11 +57,35 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-_SQRT2 = np.sqrt(2.0)
-_SQRT6 = np.sqrt(6.0)
+from shapetree.geometry._dif import (
+    FASTMATH,
+    helmert_dif,
+    is_zero_shape,
+    lagrange_form,
+    unit_helmert,
+    weighted_dif,
+)
+
+#: Placeholder cost of a table entry that nothing can reach (no admissible split inside a
+#: band; "not yet improved" in a minimum). Finite, so that the kernels may be compiled
+#: without ``nnan`` / ``ninf``; float32-safe (max 3.4e38), and a sum of a few stays finite.
+SENTINEL = 1e30
+
+_jit = njit(cache=True, nogil=True, fastmath=set(FASTMATH))
 
 
-@njit(cache=True, fastmath=True, nogil=True)
+def finite_or_inf(x: float | np.ndarray) -> float | np.ndarray:
+    """``x`` with entries ``>= SENTINEL / 2`` (unreachable) replaced by ``inf``.
+
+    Scalars give a Python float, arrays a new array of the same dtype.
+    """
+    if np.ndim(x) == 0:
+        v = float(x)
+        return np.inf if v >= 0.5 * SENTINEL else v
+    return np.where(np.asarray(x) >= 0.5 * SENTINEL, np.inf, x).astype(np.asarray(x).dtype)
+
+
+@_jit
 def fill_tables(
     left_tab: np.ndarray,
     right_tab: np.ndarray,
@@ -58,6 +98,7 @@ def fill_tables(
     seg_lam: np.ndarray,
     seg_alen: np.ndarray,
     tri: np.ndarray,
+    deg: np.ndarray | None,
     g: np.ndarray,
     blen: np.ndarray,
     cyclic: bool,
@@ -82,6 +123,9 @@ def fill_tables(
         Per model segment: λ and relative arclength.
     tri : float (m, m, 3, m)
         Target triangles ``[L, k, (z1, z2.real, z2.imag), s]``.
+    deg : uint8 (m, m) or None
+        ``deg[L, k]``: some target triangle of plane ``(L, k)`` has zero size; ``None``
+        when no target triangle has (``Target.deg``).
     g : float64 (m, m)
         ``g[L, s]``: base-case cost per unit λ of a straight segment vs subcurve (s, L).
     blen : float64 (m, m)
@@ -95,7 +139,8 @@ def fill_tables(
     lmin, lmax : int64 (K + S,)
         Band of target lengths each table may use.
     tab : float64 (K + S, m, 2 m)
-        Output, doubled by start (module docstring); only in-band rows are written.
+        Output, doubled by start (module docstring); only in-band rows are written
+        (:data:`SENTINEL` where no admissible split exists and nothing replaces it).
     """
     m = g.shape[1]
     n_nodes = lam.shape[0]
@@ -134,7 +179,7 @@ def fill_tables(
                 lt = left_tab[v]
                 rt = right_tab[v]
                 for s in range(ns):
-                    best[s] = np.inf
+                    best[s] = SENTINEL
                 # splits k whose halves both fall inside their children's bands
                 k0 = max(1, lmin[lt], length - lmax[rt])
                 k1 = min(length - 1, lmax[lt], length - lmin[rt])
@@ -144,10 +189,25 @@ def fill_tables(
                     z1 = tri[length, k, 0]
                     zr = tri[length, k, 1]
                     zi = tri[length, k, 2]
+                    # a plane with a zero-size target triangle (dif = 1 there); numba
+                    # prunes this branch when deg is None (the specialisation of nearly
+                    # every target), which keeps the fast loop as tight as without it
+                    if deg is not None:
+                        if deg[length, k]:
+                            lvt = lam[v]
+                            for s in range(ns):
+                                # own names: this loop computes in float64, the fast one
+                                # must stay in the tables' precision
+                                cd = (
+                                    lrow[s]
+                                    + rrow[s]
+                                    + weighted_dif(lvt, q1, qr, qi, z1[s], zr[s], zi[s])
+                                )
+                                if cd < best[s]:
+                                    best[s] = cd
+                            continue
                     for s in range(ns):
-                        wr = q1 * zr[s] - qr * z1[s]
-                        wi = q1 * zi[s] - qi * z1[s]
-                        c = lrow[s] + rrow[s] + wr * wr + wi * wi
+                        c = lrow[s] + rrow[s] + lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
                         b = best[s]
                         best[s] = c if c < b else b
             if occl:
@@ -161,7 +221,7 @@ def fill_tables(
                     best[m + s] = best[s]
 
 
-@njit(cache=True, fastmath=True, nogil=True)
+@_jit
 def closed_root_min(
     t1: np.ndarray, t2: np.ndarray, lo1: int, hi1: int, lo2: int, hi2: int
 ) -> tuple[float, int, int]:
@@ -173,9 +233,10 @@ def closed_root_min(
     Returns
     -------
     cost, s, L
+        ``cost >= SENTINEL / 2`` when no alignment is admissible.
     """
     m = t1.shape[0]
-    best = np.inf
+    best = SENTINEL
     bs = 0
     bl = 1
     for length in range(max(1, lo1, m - hi2), min(m - 1, hi1, m - lo2) + 1):
@@ -190,7 +251,7 @@ def closed_root_min(
     return best, bs, bl
 
 
-@njit(cache=True, fastmath=True, nogil=True)
+@_jit
 def closed_costs(
     left_tab: np.ndarray,
     right_tab: np.ndarray,
@@ -207,6 +268,7 @@ def closed_costs(
     root1: np.ndarray,
     root2: np.ndarray,
     tri: np.ndarray,
+    deg: np.ndarray | None,
     g: np.ndarray,
     blen: np.ndarray,
     occlusion: float,
@@ -219,7 +281,8 @@ def closed_costs(
     The per-tree arguments of :func:`fill_tables` are stacked along a first axis of
     length ``R`` (one row per shape-tree; all trees have the same numbers of nodes and
     segments), ``root1``/``root2`` (``R``,) are the table indices of each tree's two
-    roots, ``tab`` is one tree's workspace and ``out`` (``R``,) receives the costs.
+    roots, ``tab`` is one tree's workspace and ``out`` (``R``,) receives the costs
+    (``>= SENTINEL / 2`` where no matching is admissible).
     """
     for r in range(lam.shape[0]):
         fill_tables(
@@ -234,6 +297,7 @@ def closed_costs(
             seg_lam[r],
             seg_alen[r],
             tri,
+            deg,
             g,
             blen,
             True,
@@ -248,13 +312,14 @@ def closed_costs(
         out[r] = closed_root_min(tab[a], tab[b], lmin[r, a], lmax[r, a], lmin[r, b], lmax[r, b])[0]
 
 
-@njit(cache=True, fastmath=False, nogil=True)
+@_jit
 def target_tables(
     bx: np.ndarray,
     by: np.ndarray,
     cyclic: bool,
     power: float,
     tri: np.ndarray,
+    deg: np.ndarray,
     g: np.ndarray,
     blen: np.ndarray,
 ) -> None:
@@ -270,7 +335,12 @@ def target_tables(
     power : float
         λ exponent (a piece of ``l`` of the ``L`` segments weighs ``(l / L) ** power``).
     tri : (m, m, 3, m)
-        Output ``[L, k, (z1, z2.real, z2.imag), s]``.
+        Output ``[L, k, (z1, z2.real, z2.imag), s]``: unit Helmert coordinates of the
+        triangle ``(b_s, b_{s+k}, b_{s+L})`` (:func:`~shapetree.geometry._dif.unit_helmert`;
+        ``(0, 0, 0)`` for a triangle of zero size).
+    deg : uint8 (m, m)
+        Output ``[L, k]``: 1 where plane ``(L, k)`` holds a zero-size triangle, zeroed by
+        the caller.
     g : (m, m)
         Output ``[L, s]``, zeroed by the caller.
     blen : (m, m)
@@ -294,55 +364,38 @@ def target_tables(
     # doubled coordinates: index s + k < 2m needs no modulo
     x2 = np.concatenate((bx, bx))
     y2 = np.concatenate((by, by))
-    h1r = np.empty(m)
-    h1i = np.empty(m)
-    n1 = np.empty(m)
     for length in range(2, m):
         ns = m if cyclic else m - length
-        for s in range(ns):
-            h1r[s] = (x2[s + length] - x2[s]) / _SQRT2
-            h1i[s] = (y2[s + length] - y2[s]) / _SQRT2
-            n1[s] = h1r[s] * h1r[s] + h1i[s] * h1i[s]
         for k in range(1, length):
             tp = tri[length, k, 0]
             tr = tri[length, k, 1]
             ti = tri[length, k, 2]
             for s in range(ns):
-                h2r = (2.0 * x2[s + k] - x2[s] - x2[s + length]) / _SQRT6
-                h2i = (2.0 * y2[s + k] - y2[s] - y2[s + length]) / _SQRT6
-                den = n1[s] + h2r * h2r + h2i * h2i
-                if den > 0:
-                    # z1 = |h1| / N, z2 = h2 conj(h1) / (|h1| N): rotated so z1 is real
-                    a = np.sqrt(n1[s])
-                    inv = 1.0 / np.sqrt(den)
-                    tp[s] = a * inv
-                    if a > 0:
-                        inv2 = inv / a
-                        tr[s] = (h2r * h1r[s] + h2i * h1i[s]) * inv2
-                        ti[s] = (h2i * h1r[s] - h2r * h1i[s]) * inv2
-                    else:  # b_s == b_e: any rotation; keep h2's
-                        tr[s] = h2r * inv
-                        ti[s] = h2i * inv
-                else:  # three coincident points: the shape of an even segment
-                    tp[s] = 1.0
-                    tr[s] = 0.0
-                    ti[s] = 0.0
+                z1, z2r, z2i = unit_helmert(
+                    x2[s], y2[s], x2[s + k], y2[s + k], x2[s + length], y2[s + length]
+                )
+                tp[s] = z1
+                tr[s] = z2r
+                ti[s] = z2i
+                if is_zero_shape(z1, z2r, z2i):
+                    deg[length, k] = 1
     # base case: a straight segment subdivided to L + 1 points matched point for point
     # to B[s..s+L] over the half-split tree; h = sum of (node length in segments) * dif
     for length in range(2, m):
         kk = length // 2
         w = kk / length - 0.5  # Bookstein coordinate of the subdivided segment's midpoint
-        h1 = 1.0 / _SQRT2
-        h2 = 2.0 * w / _SQRT6
-        nrm = np.sqrt(h1 * h1 + h2 * h2)
-        a1 = h1 / nrm
-        a2 = h2 / nrm  # real: the subdivided segment is straight
+        a1, a2, _ = unit_helmert(-0.5, 0.0, w, 0.0, 0.5, 0.0)  # real: the segment is straight
         for s in range(m):
             if not cyclic and s + length > m - 1:
                 break
-            wr = a1 * float(tri[length, kk, 1, s]) - a2 * float(tri[length, kk, 0, s])
-            wi = a1 * float(tri[length, kk, 2, s])
-            dif = wr * wr + wi * wi
+            dif = helmert_dif(
+                a1,
+                a2,
+                0.0,
+                float(tri[length, kk, 0, s]),
+                float(tri[length, kk, 1, s]),
+                float(tri[length, kk, 2, s]),
+            )
             right = (s + kk) % m
             h[length, s] = h[kk, s] + h[length - kk, right] + length**power * dif
             g[length, s] = h[length, s] / length**power

@@ -10,7 +10,8 @@ from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
 from shapetree.curves import point_at
-from shapetree.matching._kernels import closed_root_min, fill_tables
+from shapetree.geometry._dif import weighted_dif_many
+from shapetree.matching._kernels import closed_root_min, fill_tables, finite_or_inf
 from shapetree.matching._prepare import (
     Model,
     Target,
@@ -159,7 +160,8 @@ def _compute_bands(td: TreeData, m: int, band: float | None) -> tuple[np.ndarray
 def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = False) -> np.ndarray:
     """Fill the tables of one tree (doubled, by start; see :mod:`._kernels`); ``reuse``
     writes into this thread's workspace (the result is then only valid until the next
-    reusing call). Only the rows inside each table's band are written."""
+    reusing call). Only the rows inside each table's band are written; unreachable entries
+    hold :data:`._kernels.SENTINEL` (map them with :func:`._kernels.finite_or_inf`)."""
     m = target.n_points
     lmin, lmax = _bands(td, m, params.band)
     dt = target.tri.dtype
@@ -169,6 +171,7 @@ def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = Fa
         td.right_tab,
         *td.kernel_arrays(dt),
         target.tri,
+        target.deg,
         target.g,
         target.blen,
         target.closed,
@@ -184,13 +187,16 @@ def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = Fa
 def _root_cost(
     td: TreeData, tab: np.ndarray, closed: bool, band: float | None
 ) -> tuple[float, int, int]:
+    """ψ of the whole model, and the alignment ``(s, L)`` of a closed one; ``inf`` when no
+    matching is admissible (the kernel's sentinel mapped back)."""
     m = tab.shape[1]
     if closed:
         lmin, lmax = _bands(td, m, band)
         r1 = td.table_of_root(td.tree.roots[0], 0)
         r2 = td.table_of_root(td.tree.roots[1], 1)
-        return closed_root_min(tab[r1], tab[r2], lmin[r1], lmax[r1], lmin[r2], lmax[r2])
-    return float(tab[td.tree.roots[0], m - 1, 0]), 0, m - 1
+        c, s0, l1 = closed_root_min(tab[r1], tab[r2], lmin[r1], lmax[r1], lmin[r2], lmax[r2])
+        return finite_or_inf(c), int(s0), int(l1)
+    return finite_or_inf(tab[td.tree.roots[0], m - 1, 0]), 0, m - 1
 
 
 class _Traceback:
@@ -254,16 +260,26 @@ class _Traceback:
             ss = s % m
             left = self.tab[lt, ks, ss]
             right = self.tab[rt, length - ks, ss + ks]
-            tri = self.t.tri[length, ks, :, ss]
-            # λ dif, evaluated as the kernel does (sqrt(λ)-scaled model coordinates)
-            wr = td.ra1[v] * tri[:, 1] - td.ra2r[v] * tri[:, 0]
-            wi = td.ra1[v] * tri[:, 2] - td.ra2i[v] * tri[:, 0]
-            tot = left + right + (wr**2 + wi**2)
+            tri = np.asarray(self.t.tri[length, ks, :, ss], dtype=np.float64)
+            # λ dif, evaluated as the kernel does (sqrt(λ)-scaled model coordinates; a
+            # zero-size target triangle costs λ)
+            lam_dif = np.empty(ks.size)
+            weighted_dif_many(
+                float(td.lam[v]),
+                float(td.ra1[v]),
+                float(td.ra2r[v]),
+                float(td.ra2i[v]),
+                np.ascontiguousarray(tri[:, 0]),
+                np.ascontiguousarray(tri[:, 1]),
+                np.ascontiguousarray(tri[:, 2]),
+                lam_dif,
+            )
+            tot = left + right + lam_dif
             if tot.size == 0:  # no admissible split: only a replacement can cover (s, L)
                 best, k = np.inf, -1
             else:
                 i = int(np.argmin(tot))
-                best, k = float(tot[i]), int(ks[i])
+                best, k = finite_or_inf(tot[i]), int(ks[i])
         if self._replace_cost(td.lam[v], td.alen[v], s, length) < best:
             self.replaced.append((sa, ea, s, s + length))
             self.pos_a[sa + 1 : ea] = np.nan
@@ -345,6 +361,8 @@ def match_prepared(
     Returns
     -------
     MatchResult
+        ``cost`` is ``inf``, and the correspondence all NaN, when no matching is
+        admissible (see :func:`match_cost`).
     """
     params = params or MatchParams()
     _check_pair(model, target)
@@ -359,7 +377,7 @@ def match_prepared(
     assert best is not None
     cost, t, tab, s0, l1 = best
     n, m = model.points.shape[0], target.n_points
-    if correspondence:
+    if correspondence and np.isfinite(cost):  # no admissible matching: no correspondence
         a_to_b, b_to_a, replaced = _traceback(model.trees[t], target, params, tab, s0, l1, n)
     else:
         a_to_b, b_to_a, replaced = np.full(n, np.nan), np.full(m, np.nan), []
@@ -390,7 +408,11 @@ def _check_pair(model: Model, target: Target) -> None:
 
 
 def match_cost(model: Model, target: Target, params: MatchParams | None = None) -> float:
-    """ψ(A, B) only (no traceback): the fast path for distance matrices."""
+    """ψ(A, B) only (no traceback): the fast path for distance matrices.
+
+    ``inf`` when no matching is admissible (only possible with bands that leave a node no
+    split, which :func:`_bands` never makes, and no occlusion to replace it).
+    """
     params = params or MatchParams()
     _check_pair(model, target)
     best = np.inf
@@ -442,7 +464,7 @@ def subcurve_table(
         raise ShapeTreeError("subcurve_table needs an open contour")
     td = tree_data(tree, weight=weight, length_scale=length_scale, power=target.length_power)
     tab = _fill(td, target, MatchParams(occlusion=occlusion), reuse=True)
-    out = tab[tree.roots[0], :, : target.n_points].T.copy()
+    out = finite_or_inf(tab[tree.roots[0], :, : target.n_points].T)
     out[:, 0] = np.inf
     return out
 

@@ -13,19 +13,9 @@ from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
 from shapetree.curves import as_curve
+from shapetree.geometry._dif import triangle_dif_many, unit_helmert_many
 from shapetree.matching._kernels import target_tables
 from shapetree.tree import SPLITS, ShapeTree, build_shape_tree
-
-_SQRT2 = np.sqrt(2.0)
-_SQRT6 = np.sqrt(6.0)
-
-
-def _helmert_from_bookstein(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit-size Helmert coordinates ``(h1 real, h2 complex)`` of triangles (-.5, .5, w)."""
-    h1 = np.full(w.shape, 1.0 / _SQRT2)
-    h2 = 2.0 * w / _SQRT6
-    norm = np.sqrt(h1**2 + np.abs(h2) ** 2)
-    return h1 / norm, h2 / norm
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,7 +30,14 @@ class Target:
     tri : ndarray, shape (m, m, 3, m)
         The triangles ``(b_s, b_{s+k}, b_{s+L})``, indexed ``[L, k, c, s]``: their unit
         Helmert coordinates ``z1`` (``c = 0``, real, rotated so) and ``z2`` (``c = 1, 2``:
-        real and imaginary part); see :mod:`shapetree.matching._kernels`.
+        real and imaginary part); see :mod:`shapetree.matching._kernels`. A triangle of
+        zero size (three coincident points) is stored as ``(0, 0, 0)``.
+    deg : ndarray of uint8, shape (m, m), or None
+        ``deg[L, k]``: 1 when some triangle ``(b_s, b_{s+k}, b_{s+L})`` has zero size (its
+        ``dif`` is then :data:`shapetree.geometry.DEGENERATE_DIF`); such planes take the
+        kernel's slower, branching path. ``None`` when no triangle has zero size (a curve
+        that never passes through one point three times; the kernel then runs its
+        specialisation without that path).
     g : ndarray, shape (m, m)
         ``g[L, s]``: base-case cost per unit λ of a straight segment subdivided into
         ``L + 1`` points and matched point for point to ``B[s..s+L]``.
@@ -56,6 +53,7 @@ class Target:
     points: np.ndarray
     closed: bool
     tri: np.ndarray
+    deg: np.ndarray | None
     g: np.ndarray
     blen: np.ndarray
     length_power: float = 1.0
@@ -97,6 +95,7 @@ def prepare_target(
         raise ShapeTreeError(f"dtype must be float64 or float32, got {dt}")
     m = b.shape[0]
     tri = np.empty((m, m, 3, m), dtype=dt)
+    deg = np.zeros((m, m), dtype=np.uint8)
     g = np.zeros((m, m), dtype=dt)
     blen = np.zeros((m, m), dtype=dt)
     target_tables(
@@ -105,6 +104,7 @@ def prepare_target(
         closed,
         float(length_power),
         tri,
+        deg,
         g,
         blen,
     )
@@ -112,6 +112,7 @@ def prepare_target(
         points=b,
         closed=closed,
         tri=tri,
+        deg=deg if deg.any() else None,
         g=g,
         blen=blen,
         length_power=float(length_power),
@@ -179,13 +180,20 @@ def tree_data(
     seg_start = np.arange(n_seg)
     alen = (cum[tree.end] - cum[tree.start]) / scale
     lam = weight * alen**power
-    w = tree.coords[:, 0] + 1j * tree.coords[:, 1]
-    a1, a2 = _helmert_from_bookstein(w)
+    # each node's triangle (a_start, a_mid, a_end) in its Bookstein frame, and the straight
+    # evenly subdivided segment with the same split
+    tri_a = np.zeros((k, 3, 2))
+    tri_a[:, 0, 0], tri_a[:, 2, 0] = -0.5, 0.5
+    even = tri_a.copy()
+    tri_a[:, 1] = tree.coords
+    even[:, 1, 0] = (tree.mid - tree.start) / (tree.end - tree.start) - 0.5
+    z = np.empty((k, 3))
+    unit_helmert_many(tri_a, z)  # z1 = 1/sqrt(2)/N > 0: the frame needs no rotation
+    a1, a2r, a2i = z[:, 0], z[:, 1], z[:, 2]
     # cost of each node's own triangle against a straight, evenly subdivided segment
-    t = (tree.mid - tree.start) / (tree.end - tree.start)
-    c1, c2 = _helmert_from_bookstein(t - 0.5 + 0j)
-    ip = a1 * c1 + np.conj(a2) * c2
-    own = lam * np.maximum(1.0 - np.abs(ip) ** 2, 0.0)
+    dif_flat = np.empty(k)
+    triangle_dif_many(tri_a, even, dif_flat)
+    own = lam * dif_flat
     flat = own.copy()
     for v in range(k):  # post-order: children first
         for c in (tree.left[v], tree.right[v]):
@@ -201,8 +209,8 @@ def tree_data(
         lam=np.ascontiguousarray(lam),
         # λ dif = |sqrt(λ) (a1 z2 - a2 z1)|^2 (see ._kernels)
         ra1=np.ascontiguousarray(np.sqrt(lam) * a1),
-        ra2r=np.ascontiguousarray(np.sqrt(lam) * a2.real),
-        ra2i=np.ascontiguousarray(np.sqrt(lam) * a2.imag),
+        ra2r=np.ascontiguousarray(np.sqrt(lam) * a2r),
+        ra2i=np.ascontiguousarray(np.sqrt(lam) * a2i),
         flat=flat,
         alen=alen,
         seg_start=seg_start,

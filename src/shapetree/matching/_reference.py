@@ -2,20 +2,46 @@
 
 This module follows the paper's definitions literally and shares no code with the
 compiled kernel except the shape-tree itself: every ``dif`` is computed from the raw
-triangles, and both base cases are evaluated by *actually subdividing* the line segment
-and scoring the identity correspondence, as §3 describes. It is exponential without its
+triangles by its own literal pure-Python :func:`_dif` (centre, scale to unit size,
+``1 - |<z, w>|^2``; the only ``dif`` of the project outside
+:mod:`shapetree.geometry._dif`), and both base cases are evaluated by *actually
+subdividing* the line segment and scoring the identity correspondence, as §3 describes.
+The one convention it takes from :mod:`shapetree.geometry` is the rule for triangles of
+zero size (:data:`~shapetree.geometry.DEGENERATE_DIF`). It is exponential without its
 memo table and O(n m^3) Python steps with it: use it only for small curves (n, m <= ~16).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
 
-from shapetree.geometry import triangle_dif
+from shapetree.geometry import DEGENERATE_DIF
 from shapetree.tree import ShapeTree
+
+
+def _dif(tri_a: np.ndarray, tri_b: np.ndarray) -> float:
+    """Squared full Procrustes distance of two labelled triangles, literally (§3).
+
+    Both triangles (``(3, 2)`` arrays) are centred and scaled to unit size as complex
+    vectors ``z``, ``w``; ``dif = 1 - |<z, w>|^2``. A triangle whose three points coincide
+    has zero size and no shape: :data:`~shapetree.geometry.DEGENERATE_DIF`.
+    """
+    out = []
+    for t in (np.asarray(tri_a, dtype=float), np.asarray(tri_b, dtype=float)):
+        if all(p[0] == t[0][0] and p[1] == t[0][1] for p in t):
+            return DEGENERATE_DIF
+        z = [complex(x, y) for x, y in t]
+        c = sum(z) / len(z)
+        z = [v - c for v in z]
+        size = math.sqrt(sum(abs(v) ** 2 for v in z))
+        out.append([v / size for v in z])
+    z, w = out
+    ip = sum(a.conjugate() * b for a, b in zip(z, w, strict=True))
+    return min(max(1.0 - abs(ip) ** 2, 0.0), 1.0)
 
 
 def _arclen(p: np.ndarray) -> float:
@@ -43,7 +69,7 @@ def _identity_cost(
             continue
         i = mids[(s, e)]
         lam = weight * (_arclen(p[s : e + 1]) / scale) ** power
-        total += lam * float(triangle_dif(p[[s, i, e]], q[[s, i, e]]))
+        total += lam * _dif(p[[s, i, e]], q[[s, i, e]])
         stack += [(s, i), (i, e)]
     return total
 
@@ -122,41 +148,48 @@ class ReferenceMatcher:
         b_len = _arclen(self.b_sub(s, length)) / self.lb
         return self.occlusion * self.weight * a_len**self.power * (a_len + b_len)
 
-    def _psi(self, sa: int, ea: int, s: int, length: int) -> float:
-        """ψ(U[sa..ea], B[s..s+length])."""
+    def base_cost(self, sa: int, ea: int, s: int, length: int) -> float:
+        """The base cases of eq. (1): a segment of ``A`` (``ea - sa == 1``) or a target
+        segment (``length == 1``), by actual subdivision (no replacement)."""
         a = self.u[sa : ea + 1]
         bsub = self.b_sub(s, length)
         if ea - sa == 1:
             if length == 1:
-                cost = 0.0  # segment vs segment
-            else:
-                # subdivide A's segment to as many points as B' and match point for point
-                t = np.linspace(0.0, 1.0, length + 1)[:, None]
-                seg = a[0] + t * (a[1] - a[0])
-                cost = self.segment_weight * _identity_cost(
-                    seg, bsub, self.weight, self.la, _half_mids(length + 1), self.power
-                )
-        elif length == 1:
-            # subdivide B's segment to as many points as A' and match point for point
-            k = ea - sa + 1
-            t = np.linspace(0.0, 1.0, k)[:, None]
-            seg = bsub[0] + t * (bsub[1] - bsub[0])
-            mids = {
-                (s0 - sa, e0 - sa): i - sa
-                for (s0, e0), i in self.mids.items()
-                if sa <= s0 and e0 <= ea
-            }
-            cost = _identity_cost(a, seg, self.weight, self.la, mids, self.power)
+                return 0.0  # segment vs segment
+            # subdivide A's segment to as many points as B' and match point for point
+            t = np.linspace(0.0, 1.0, length + 1)[:, None]
+            seg = a[0] + t * (a[1] - a[0])
+            return self.segment_weight * _identity_cost(
+                seg, bsub, self.weight, self.la, _half_mids(length + 1), self.power
+            )
+        # subdivide B's segment to as many points as A' and match point for point
+        k = ea - sa + 1
+        t = np.linspace(0.0, 1.0, k)[:, None]
+        seg = bsub[0] + t * (bsub[1] - bsub[0])
+        mids = {
+            (s0 - sa, e0 - sa): i - sa for (s0, e0), i in self.mids.items() if sa <= s0 and e0 <= ea
+        }
+        return _identity_cost(a, seg, self.weight, self.la, mids, self.power)
+
+    def split_cost(self, sa: int, ea: int, s: int, length: int, j: int) -> float:
+        """λ dif of the node ``(sa, mid, ea)`` against the target triangle ``(b_s, b_{s+j},
+        b_{s+length})`` (the term eq. (1) adds for split ``j``)."""
+        i = self.mids[(sa, ea)]
+        lam = self.weight * (_arclen(self.u[sa : ea + 1]) / self.la) ** self.power
+        return lam * _dif(self.u[[sa, i, ea]], self.b_sub(s, length)[[0, j, length]])
+
+    def _psi(self, sa: int, ea: int, s: int, length: int) -> float:
+        """ψ(U[sa..ea], B[s..s+length])."""
+        if ea - sa == 1 or length == 1:
+            cost = self.base_cost(sa, ea, s, length)
         else:
             i = self.mids[(sa, ea)]
-            lam = self.weight * (_arclen(a) / self.la) ** self.power
             cost = math.inf
             for j in range(1, length):
-                tri_b = bsub[[0, j, length]]
                 c = (
                     self.psi(sa, i, s, j)
                     + self.psi(i, ea, (s + j) % self.m if self.cyclic else s + j, length - j)
-                    + lam * float(triangle_dif(self.u[[sa, i, ea]], tri_b))
+                    + self.split_cost(sa, ea, s, length, j)
                 )
                 cost = min(cost, c)
         if self.occlusion is not None:
@@ -278,7 +311,7 @@ def reference_correspondence(
             c = (
                 rm.psi(sa, i, s, j)
                 + rm.psi(i, ea, (s + j) % m if rm.cyclic else s + j, length - j)
-                + lam * float(triangle_dif(rm.u[[sa, i, ea]], bsub[[0, j, length]]))
+                + lam * _dif(rm.u[[sa, i, ea]], bsub[[0, j, length]])
             )
             cands.append((c, j))
         j = int(pick(cands))
@@ -304,3 +337,88 @@ def reference_correspondence(
     visit(0, k, s, length)
     visit(k, n, s + length, m - length)
     return cost, mapping, unique
+
+
+def reference_score(
+    tree: ShapeTree,
+    b: np.ndarray,
+    a_to_b: np.ndarray,
+    replaced: Sequence[tuple[int, int, int, int]] = (),
+    *,
+    weight: float = 1.0,
+    occlusion: float | None = None,
+    power: float = 1.0,
+    segment_weight: float = 1.0,
+) -> float:
+    """The cost of one given correspondence, scored literally (the oracle of a traceback).
+
+    Walks ``tree`` from its root(s) with the images the correspondence gives the nodes'
+    endpoints: a node listed in ``replaced`` costs its replacement, a segment of ``A`` or
+    a node mapped to a single target segment costs its base case (by subdivision),
+    any other node its ``λ dif`` against the triangle of its endpoints' and midpoint's
+    images plus its children's costs. Nothing is minimised, so the result equals the
+    optimum only if the correspondence is optimal.
+
+    Parameters
+    ----------
+    tree : ShapeTree
+        The shape-tree the correspondence was found with (``MatchResult.tree_index``).
+    b : ndarray, shape (m, 2)
+    a_to_b : ndarray, shape (n,)
+        Target index of every point of ``A`` in ``A``'s own indices (as
+        ``MatchResult.a_to_b``: modulo ``m`` for closed curves; fractional or NaN values
+        only where no node endpoint needs them).
+    replaced : list of (a_start, a_end, b_start, b_end)
+        As ``MatchResult.replaced`` (indices modulo ``n``, ``m`` for closed curves).
+    weight, occlusion, power, segment_weight
+        As for :func:`reference_match_cost`.
+
+    Returns
+    -------
+    float
+    """
+    rm = ReferenceMatcher(
+        tree,
+        b,
+        cyclic=tree.closed,
+        weight=weight,
+        occlusion=occlusion,
+        power=power,
+        segment_weight=segment_weight,
+    )
+    m, n = rm.m, tree.n_points
+    pos = np.asarray(a_to_b, dtype=float)
+    if tree.closed:
+        off = tree.offset
+        s0 = float(pos[off % n])
+        # unrolled target position of every unrolled point of A (u = 0 .. n)
+        unrolled = [s0 + (float(pos[(u + off) % n]) - s0) % m for u in range(n)] + [s0 + m]
+        reps = set()
+        for a0, a1, _b0, _b1 in replaced:
+            sa, ea = (a0 - off) % n, (a1 - off) % n
+            reps.add((sa, ea if ea > sa else ea + n))
+    else:
+        unrolled = [float(p) for p in pos]
+        reps = {(a0, a1) for a0, a1, _b0, _b1 in replaced}
+
+    def image(u: int) -> int:
+        p = unrolled[u]
+        if not float(p).is_integer():
+            raise ValueError(f"point {u} of the shape-tree has no integer image ({p})")
+        return int(p)
+
+    def visit(sa: int, ea: int) -> float:
+        s, e = image(sa), image(ea)
+        length = e - s
+        if (sa, ea) in reps:
+            if occlusion is None:
+                raise ValueError("a replaced subcurve needs an occlusion factor")
+            return rm._replace(sa, ea, s, length)
+        if ea - sa == 1 or length == 1:
+            return rm.base_cost(sa, ea, s, length)
+        i = rm.mids[(sa, ea)]
+        return rm.split_cost(sa, ea, s, length, image(i) - s) + visit(sa, i) + visit(i, ea)
+
+    if not tree.closed:
+        return visit(0, n - 1)
+    return visit(0, tree.split_index) + visit(tree.split_index, n)
