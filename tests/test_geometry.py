@@ -178,7 +178,8 @@ def test_procrustes_dif_broadcasts_and_checks_shapes():
 def test_geometry_dif_functions_share_the_flags():
     from numba.core.cpu import FastMathOptions
 
-    from shapetree.geometry import FASTMATH, _dif
+    from shapetree.geometry import _dif
+    from shapetree.geometry._dif import FASTMATH
 
     for name in ("lagrange_form", "unit_helmert", "helmert_dif", "points_dif", "weighted_dif"):
         fn = getattr(_dif, name)

@@ -13,8 +13,9 @@ from _shapes import blob
 from numba.core.cpu import FastMathOptions
 
 from shapetree.detection import _stitch
-from shapetree.geometry import DEGENERATE_DIF, FASTMATH, triangle_dif
+from shapetree.geometry import DEGENERATE_DIF, triangle_dif
 from shapetree.geometry import _dif as dif_module
+from shapetree.geometry._dif import FASTMATH
 from shapetree.matching import (
     MatchParams,
     match_cost,

@@ -44,7 +44,7 @@ with the branch-free linear form. A target without such triangles (nearly all) p
 
 Sentinel and fast-math
 ----------------------
-The kernels are compiled with :data:`~shapetree.geometry.FASTMATH` (fast-math without
+The kernels are compiled with :data:`~shapetree.geometry._dif.FASTMATH` (fast-math without
 ``nnan`` / ``ninf``) and never store ``inf``: an entry with no admissible split (possible
 only in the pruned mode, when the children's bands cannot add up to ``L``) holds
 :data:`SENTINEL` (``1e30``, representable in float32; sums of two sentinels stay finite).
