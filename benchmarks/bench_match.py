@@ -41,9 +41,9 @@ from shapetree.matching import (  # noqa: E402
     match_prepared,
     prepare_model,
     prepare_target,
-    reference_match_cost,
 )
 from shapetree.matching._batch import ModelStack  # noqa: E402
+from shapetree.matching._reference import reference_match_cost  # noqa: E402
 from shapetree.tree import build_shape_tree  # noqa: E402
 
 

@@ -20,10 +20,12 @@ from shapetree.matching import (
     match_prepared,
     prepare_model,
     prepare_target,
+    subcurve_table,
+)
+from shapetree.matching._reference import (
     reference_correspondence,
     reference_match_cost,
     reference_subcurve_table,
-    subcurve_table,
 )
 from shapetree.tree import build_shape_tree, deform
 

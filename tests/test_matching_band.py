@@ -24,10 +24,9 @@ from shapetree.matching import (
     match_prepared,
     prepare_model,
     prepare_target,
-    reference_match_cost,
 )
 from shapetree.matching._batch import ModelStack
-from shapetree.matching._reference import reference_score
+from shapetree.matching._reference import reference_match_cost, reference_score
 from shapetree.tree import build_shape_tree, deform
 
 BANDS = [1.0, 1.5, 2.0, 3.0]

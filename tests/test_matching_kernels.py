@@ -22,16 +22,18 @@ from shapetree.matching import (
     match_prepared,
     prepare_model,
     prepare_target,
-    reference_correspondence,
-    reference_match_cost,
-    reference_subcurve_table,
     subcurve_table,
 )
 from shapetree.matching import _kernels as kernels
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._match import _bands, _buffers
 from shapetree.matching._reference import _dif as oracle_dif
-from shapetree.matching._reference import reference_score
+from shapetree.matching._reference import (
+    reference_correspondence,
+    reference_match_cost,
+    reference_score,
+    reference_subcurve_table,
+)
 from shapetree.tree import build_shape_tree
 
 UNSAFE = {"fast", "nnan", "ninf"}

@@ -8,7 +8,8 @@ import numpy as np
 
 from shapetree._errors import ShapeTreeError
 from shapetree.demo._shapes import demo_shape, demo_shapes
-from shapetree.matching import MatchConfig, resolve_config
+from shapetree.matching import MatchConfig
+from shapetree.matching._config import resolve_config
 
 __all__ = ["Candidate", "DemoRanking", "demo_ranking", "similarity"]
 

@@ -39,7 +39,7 @@ Interpretations of the paper (where its text is terse)
 """
 
 from shapetree.matching._api import match, mirror_curve
-from shapetree.matching._config import OPTIONS, PRESETS, MatchConfig, resolve_config
+from shapetree.matching._config import OPTIONS, PRESETS, MatchConfig
 from shapetree.matching._match import (
     MatchParams,
     MatchResult,
@@ -48,11 +48,6 @@ from shapetree.matching._match import (
     subcurve_table,
 )
 from shapetree.matching._prepare import Model, Target, prepare_model, prepare_target
-from shapetree.matching._reference import (
-    reference_correspondence,
-    reference_match_cost,
-    reference_subcurve_table,
-)
 
 __all__ = [
     "OPTIONS",
@@ -68,9 +63,5 @@ __all__ = [
     "mirror_curve",
     "prepare_model",
     "prepare_target",
-    "reference_correspondence",
-    "reference_match_cost",
-    "reference_subcurve_table",
-    "resolve_config",
     "subcurve_table",
 ]

@@ -20,7 +20,8 @@ import numpy as np
 from shapetree._atomic import atomic_write_text
 from shapetree._bench import PAPER_TABLES, format_table, headline, machine_info, protocol_score
 from shapetree._errors import ShapeTreeError
-from shapetree.matching import OPTIONS, MatchConfig, resolve_config
+from shapetree.matching import OPTIONS, MatchConfig
+from shapetree.matching._config import resolve_config
 from shapetree.retrieval._engine import combine, directed_costs
 from shapetree.retrieval._rerank import RERANK_DEFAULTS, tpg_rerank
 
