@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import os
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from shapetree._errors import ImageError, ShapeTreeError
 from shapetree.curves import resample
+from shapetree.curves._validate import ACCEPTED_FORMS, _as_xy
 from shapetree.geometry import outline_dif
 
 from ._contours import TracedContour, polyline_length, trace_contours_detailed
@@ -40,7 +43,8 @@ class DetectParams:
     contour_spacing : float
         Contours are resampled for the tables with about this spacing (6 px) ...
     contour_min_points, contour_max_points : int
-        ... but with at least 3 and at most 24 points.
+        ... but with at least 3 and at most 24 points (``contour_min_points >= 2``: an
+        open polyline needs its two ends; ``contour_max_points >= contour_min_points``).
     tau : float
         Max endpoint distance for a direct composition (12 px).
     lam : float
@@ -146,6 +150,21 @@ class DetectParams:
     border_margin: float = 6.0
     outline_check: float = 0.4
     frame_prior: float = 0.075
+
+    def __post_init__(self) -> None:
+        lo, hi = self.contour_min_points, self.contour_max_points
+        for field_name, v in (("contour_min_points", lo), ("contour_max_points", hi)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+                raise ShapeTreeError(f"DetectParams.{field_name} must be an integer, got {v!r}")
+        if lo < 2:
+            raise ShapeTreeError(
+                f"DetectParams.contour_min_points must be >= 2 (an open contour is resampled "
+                f"to at least its two end points), got {lo}"
+            )
+        if hi < lo:
+            raise ShapeTreeError(
+                f"DetectParams.contour_max_points ({hi}) must be >= contour_min_points ({lo})"
+            )
 
     def as_dict(self) -> dict[str, Any]:
         """All parameters as a JSON-friendly dict."""
@@ -398,6 +417,56 @@ def _ranking_score(det: Detection, shape: tuple[int, ...] | None, p: DetectParam
     return dataclasses.replace(det, score=score)
 
 
+def _as_contour(contour: object, name: str) -> NDArray[np.float64]:
+    """One given image contour as an open ``(n, 2)`` polyline (a finite float64 copy).
+
+    It may be in any form :func:`shapetree.curves.as_curve` accepts: an ``(n, 2)`` array; an
+    OpenCV contour ``(n, 1, 2)``; or a geometry with a ``__geo_interface__`` (a
+    ``LineString``; a ``Polygon``'s exterior, a ``LinearRing``). The polyline runs through
+    the points as given, first to last: a ring's repeated closing point is dropped, so its
+    closing segment is not part of it, as OpenCV gives closed boundaries (a contour that
+    ends where it starts has no shape-tree and would never be matched). Duplicate points
+    are kept; a contour may have zero length (the caller skips it).
+    """
+    return _as_xy(contour, name)
+
+
+def _as_contours(contours: object) -> list[NDArray[np.float64]]:
+    """A list of image contours, each read by :func:`_as_contour`.
+
+    Refuses one contour given in place of the list (iterating it would give its points).
+    """
+    single = (
+        isinstance(contours, np.ndarray)
+        and (contours.ndim == 2 or (contours.ndim == 3 and contours.shape[1:] == (1, 2)))
+    ) or hasattr(contours, "__geo_interface__")
+    if single or isinstance(contours, str | Mapping):
+        what = (
+            f"an array of shape {contours.shape}"
+            if isinstance(contours, np.ndarray)
+            else f"a {type(contours).__name__}"
+        )
+        raise ShapeTreeError(
+            f"contours= takes a list of contours, got {what}; for a single contour "
+            f"pass [contour]. Each contour is {ACCEPTED_FORMS}"
+        )
+    return [_as_contour(c, f"contours[{i}]") for i, c in enumerate(contours)]
+
+
+def _given_contours(contours: object) -> list[NDArray[np.float64]]:
+    """The ``contours=`` of :func:`detect_detailed`, each as a 1-px resampled polyline.
+
+    Contours of zero length (a single point, as ``cv2.findContours`` returns for a speck,
+    or repeated copies of one point) carry no shape and are skipped.
+    """
+    dense = []
+    for c in _as_contours(contours):
+        length = polyline_length(c) if len(c) > 1 else 0.0
+        if length > 0:
+            dense.append(resample(c, max(2, int(np.ceil(length)) + 1), closed=False))
+    return dense
+
+
 def _as_image(image: ArrayLike | str | os.PathLike[str] | None) -> NDArray | None:
     if image is None:
         return None
@@ -418,8 +487,9 @@ def detect_detailed(
 ) -> DetectionRun:
     """Like :func:`detect`, but also return edges, contours and timings.
 
-    ``contours`` (list of (n_i, 2) open polylines in px) replaces edge
-    detection and tracing when given; ``image`` and ``edges`` may then be None.
+    ``contours`` (a list of open polylines in px, in any form :func:`detect`
+    accepts) replaces edge detection and tracing when given; ``image`` and
+    ``edges`` may then be None.
     """
     p = params or DetectParams()
     if overrides:
@@ -457,15 +527,8 @@ def detect_detailed(
     t0 = time.perf_counter()
     strengths: list[float] = []
     if contours is not None:
-        dense = []
-        for c in contours:
-            c = np.asarray(c, dtype=np.float64)
-            if c.ndim != 2 or c.shape[1] != 2 or len(c) < 2 or not np.all(np.isfinite(c)):
-                raise ShapeTreeError("each contour must be a finite (n, 2) array with n >= 2")
-            length = polyline_length(c)
-            if length > 0:
-                dense.append(resample(c, max(2, int(np.ceil(length)) + 1), closed=False))
-                strengths.append(1.0)  # given contours count as full edge evidence
+        dense = _given_contours(contours)
+        strengths = [1.0] * len(dense)  # given contours count as full edge evidence
     else:
         traced: list[TracedContour] = trace_contours_detailed(
             _without_border(e, p.border_margin),
@@ -581,7 +644,9 @@ def detect(
     ----------
     model : DetectionModel, path-like or array_like, shape (n, 2)
         The model: a :class:`DetectionModel`, an outline drawing or point file
-        (see :func:`load_model`), or closed-curve points.
+        (see :func:`load_model`), or closed-curve points in any form
+        :func:`shapetree.curves.as_curve` accepts (an OpenCV contour ``(n, 1,
+        2)``, a shapely ``Polygon``: its exterior, ...).
     image : array_like, shape (H, W) or (H, W, 3), path-like, or None
         The image (may be None when ``edges`` is given).
     edges : array_like, shape (H, W), path-like, or None
@@ -593,6 +658,13 @@ def detect(
         Parameters; keyword ``overrides`` replace single fields.
     contours : list of array_like, each shape (n_i, 2), or None
         Use these open image contours (px) instead of tracing the edge map.
+        Each may be an ``(n_i, 2)`` array, an OpenCV contour ``(n_i, 1, 2)``
+        (e.g. the list ``cv2.findContours`` returns), or a geometry with a
+        ``__geo_interface__`` (a ``LineString``; a ``Polygon``: its exterior;
+        a ``LinearRing``).  Each is the open polyline through its points, first
+        to last: a closed boundary (an OpenCV contour, a ring, whose repeated
+        closing point is dropped) does not include its closing segment.
+        Contours of zero length (single points) are skipped.
 
     Returns
     -------
@@ -605,7 +677,9 @@ def detect(
     ImageError
         For unreadable or mismatched image / edge inputs.
     ShapeTreeError
-        For bad parameters or models.
+        For bad parameters or models, or a contour in none of the accepted
+        forms (a :class:`~shapetree.CurveError` naming ``contours[i]`` and the
+        forms).
     """
     return detect_detailed(
         model, image, edges=edges, k=k, params=params, contours=contours, **overrides

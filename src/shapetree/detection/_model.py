@@ -10,7 +10,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
-from shapetree._errors import ImageError, ShapeTreeError
+from shapetree._errors import CurveError, ImageError, ShapeTreeError
+from shapetree.curves._validate import _as_xy
 
 __all__ = [
     "DetectionModel",
@@ -294,10 +295,15 @@ def make_model(
     Parameters
     ----------
     curve : array_like, shape (n, 2)
-        Model curve ``(x, y)`` (any units; only its shape matters).
+        Model curve ``(x, y)`` (any units; only its shape matters), or any
+        other form :func:`shapetree.curves.as_curve` accepts: an OpenCV contour
+        ``(n, 1, 2)``, a shapely ``Polygon`` (its exterior) or ``LinearRing``
+        (without the repeated closing point), a ``LineString``.  Points are
+        kept as given (duplicates too, so ``free`` lines up with them).
     closed : bool
         Whether the curve is closed.  An open curve is closed by the chord from
         its last point back to its first, and gaps on that chord cost nothing.
+        ``False`` refuses rings (a ``Polygon`` or ``LinearRing`` is closed).
     m : int
         Number of samples for the contour tables and stitching (default 30).
     name : str
@@ -315,12 +321,13 @@ def make_model(
     Raises
     ------
     ShapeTreeError
-        If the curve is not an ``(n, 2)`` finite array with ``n >= 3`` and
-        non-zero length, or ``m < 6``.
+        If the curve is none of the accepted forms (a :class:`~shapetree.CurveError`
+        listing them), holds NaN/inf, has fewer than 3 points or zero length,
+        or ``m < 6``.
     """
-    pts = np.asarray(curve, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3 or not np.all(np.isfinite(pts)):
-        raise ShapeTreeError(f"{name}: model curve must be a finite (n, 2) array with n >= 3")
+    pts = _as_xy(curve, f"{name}: model curve", closed=closed)
+    if len(pts) < 3:
+        raise CurveError(f"{name}: model curve needs at least 3 points, got {len(pts)}")
     if m < 6:
         raise ShapeTreeError(f"m must be >= 6, got {m}")
     fr = np.zeros(len(pts), bool) if free is None else np.asarray(free, dtype=bool).copy()
@@ -361,7 +368,8 @@ def load_model(
         An image file (``.png``, ``.tif``, ``.pgm``, ...) holding a drawn
         outline (see :func:`outline_from_image` and ``all_strokes``), a point
         file readable by :func:`shapetree.curves.load_points`, or the points
-        themselves.
+        themselves, in any form :func:`make_model` accepts (an OpenCV contour
+        ``(n, 1, 2)``, a shapely ``Polygon``, ...).
     m : int
         Number of stitching samples (default 30).
     closed : bool or None
@@ -393,7 +401,7 @@ def load_model(
             pts, is_closed = np.asarray(load_points(p), dtype=np.float64), True
         name = p.stem
     else:
-        pts, is_closed, name = np.asarray(source, dtype=np.float64), True, "model"
+        pts, is_closed, name = source, True, "model"  # read by make_model
     if closed is not None:
         is_closed = bool(closed)
     return make_model(pts, closed=is_closed, m=m, name=name)

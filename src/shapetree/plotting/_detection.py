@@ -40,7 +40,12 @@ def plot_contours(
     Parameters
     ----------
     contours : sequence of array_like, each shape (n_i, 2)
-        Polylines ``(x, y)`` in pixels, e.g. from :func:`shapetree.detection.trace_contours`.
+        Polylines ``(x, y)`` in pixels, e.g. from :func:`shapetree.detection.trace_contours`,
+        in any form the ``contours=`` of :func:`shapetree.detection.detect` accepts: also
+        OpenCV contours ``(n_i, 1, 2)`` (the list ``cv2.findContours`` returns) and
+        geometries (a ``LineString``, a shapely ``Polygon``: its exterior, a
+        ``LinearRing``). Drawn as detection reads them: open polylines through the points,
+        first to last (a closed boundary's closing segment is not drawn).
     shape : (H, W), optional
         Image size: sets the axes limits (``y`` down).
     ax : matplotlib Axes, optional
@@ -53,12 +58,20 @@ def plot_contours(
     Returns
     -------
     matplotlib.axes.Axes
+
+    Raises
+    ------
+    ShapeTreeError
+        If a contour is none of the accepted forms (a ``CurveError`` naming
+        ``contours[i]``), or one contour is given in place of the list.
     """
+    from shapetree.detection._detect import _as_contours
+
+    polylines = _as_contours(contours)
     if ax is None:
         ax = new_figure(5, 4).add_subplot()
     rng = np.random.default_rng(seed)
-    for c in contours:
-        c = np.asarray(c, dtype=float)
+    for c in polylines:
         ax.plot(c[:, 0], c[:, 1], "-", color=rng.uniform(0.1, 0.9, 3), lw=1.2)
         if endpoints:
             ax.plot(c[[0, -1], 0], c[[0, -1], 1], "k.", ms=2)

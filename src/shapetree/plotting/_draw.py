@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
 from shapetree.curves import point_at
+from shapetree.curves._validate import _as_xy
 from shapetree.plotting._save import check_figure_path, new_figure, save_figure
 
 __all__ = [
@@ -86,7 +87,11 @@ def plot_curve(
     Parameters
     ----------
     points : array_like, shape (n, 2)
+        The ``(x, y)`` points, or any other form :func:`shapetree.curves.as_curve` accepts
+        (an OpenCV contour ``(n, 1, 2)``, a shapely ``Polygon``/``LinearRing``: its
+        exterior, ``LineString``); drawn as given (duplicate points are kept).
     closed : bool, default True
+        ``False`` refuses rings (a ``Polygon`` or ``LinearRing`` is closed).
     ax : matplotlib Axes, optional
         Where to draw; default a new figure.
     invert_y : bool, default False
@@ -98,10 +103,16 @@ def plot_curve(
     Returns
     -------
     matplotlib.axes.Axes
+
+    Raises
+    ------
+    CurveError
+        If ``points`` is none of the accepted forms (the message lists them), or holds NaN/inf.
     """
+    pts = _as_xy(points, "plot_curve points", closed=closed)
     if ax is None:
         ax = new_figure(3, 3).add_subplot()
-    p = _closed_path(_normalise(np.asarray(points, dtype=float), invert_y), closed)
+    p = _closed_path(_normalise(pts, invert_y), closed)
     ax.plot(p[:, 0], p[:, 1], color=color, **kwargs)
     _clean(ax)
     return ax
@@ -280,6 +291,18 @@ def _colormap(name: str):
     return lambda t: cm(0.05 + 0.8 * np.asarray(t, dtype=float))
 
 
+def _check_tree(tree: object, func: str) -> None:
+    """Refuse anything but a ShapeTree, pointing raw curves to ``build_shape_tree``."""
+    from shapetree.tree import ShapeTree
+
+    if not isinstance(tree, ShapeTree):
+        raise ShapeTreeError(
+            f"{func} draws shape-trees, got {type(tree).__name__}; build one from the curve "
+            "(an (n, 2) array, an OpenCV contour, a shapely Polygon, ...) with "
+            "shapetree.tree.build_shape_tree(points, closed=...)"
+        )
+
+
 def _grid(k: int, ncols: int | None) -> tuple[int, int]:
     cols = ncols or (k if k <= 4 else (3 if k <= 6 else 4))
     cols = max(1, min(cols, k))
@@ -307,7 +330,8 @@ def plot_tree(
     Parameters
     ----------
     tree : ShapeTree
-        From :func:`shapetree.tree.build_shape_tree`.
+        From :func:`shapetree.tree.build_shape_tree` (which reads the curve in any form
+        :func:`shapetree.curves.as_curve` accepts: OpenCV contours, shapely polygons, ...).
     path : path-like, optional
         Save the figure there (atomically).
     max_levels : int, optional
@@ -326,7 +350,14 @@ def plot_tree(
     -------
     matplotlib.figure.Figure
         With one axes per drawn depth (``fig.axes``; unused grid cells are removed).
+
+    Raises
+    ------
+    ShapeTreeError
+        If ``tree`` is not a ShapeTree (e.g. raw points: build the tree first), or
+        ``max_levels < 1``.
     """
+    _check_tree(tree, "plot_tree")
     if path is not None:
         check_figure_path(path)
     levels = tree.levels() if tree.n_nodes else []
@@ -405,6 +436,8 @@ def plot_deformations(
     Parameters
     ----------
     tree : ShapeTree or sequence of ShapeTree
+        From :func:`shapetree.tree.build_shape_tree` (which reads the curve in any form
+        :func:`shapetree.curves.as_curve` accepts: OpenCV contours, shapely polygons, ...).
     scales : float, array_like, or sequence of them, default (0.05, 0.1, 0.2)
         Noise standard deviation(s) in Bookstein units. A float or a 1-D per-depth array is
         one scale; a list gives one row per scale (per tree).
@@ -426,14 +459,28 @@ def plot_deformations(
     -------
     matplotlib.figure.Figure
         ``rows * (n + 1)`` axes, row-major.
+
+    Raises
+    ------
+    ShapeTreeError
+        If ``tree`` is not a ShapeTree or a sequence of them (e.g. raw points: build the
+        trees first), or for bad ``n``, ``names`` or ``invert_y``.
     """
     from shapetree.tree import ShapeTree, deform
 
     if path is not None:
         check_figure_path(path)
-    trees = [tree] if isinstance(tree, ShapeTree) else list(tree)
+    if isinstance(tree, ShapeTree | np.ndarray | str) or hasattr(tree, "__geo_interface__"):
+        trees = [tree]  # raw points are refused just below, with a pointer to build_shape_tree
+    else:
+        try:
+            trees = list(tree)
+        except TypeError:
+            trees = [tree]
     if not trees:
         raise ShapeTreeError("plot_deformations needs at least one shape-tree")
+    for t in trees:
+        _check_tree(t, "plot_deformations")
     if np.ndim(scales) == 0 or (
         isinstance(scales, np.ndarray) and scales.ndim == 1 and scales.dtype != object
     ):
@@ -496,9 +543,11 @@ def plot_ranking(
     Parameters
     ----------
     query : array_like, shape (n, 2)
+        The query curve, or any other form :func:`shapetree.curves.as_curve` accepts (an
+        OpenCV contour ``(n, 1, 2)``, a shapely ``Polygon``: its exterior, ...).
     candidates : sequence of (label, points, cost) or (label, points, cost, highlight)
-        In rank order (best first). Highlighted candidates (e.g. the true matches) are
-        drawn in green, the others in grey-blue.
+        In rank order (best first); ``points`` in any form ``query`` may take. Highlighted
+        candidates (e.g. the true matches) are drawn in green, the others in grey-blue.
     path : path-like, optional
         Save the figure there (atomically).
     query_label : str, default "query"
@@ -514,19 +563,33 @@ def plot_ranking(
     -------
     matplotlib.figure.Figure
         ``1 + len(candidates)`` axes.
+
+    Raises
+    ------
+    CurveError
+        If the query or a candidate's points are none of the accepted forms (the message
+        names the curve and lists the forms).
+    ShapeTreeError
+        If a candidate is not a ``(label, points, cost[, highlight])`` tuple.
     """
     if path is not None:
         check_figure_path(path)
-    k = 1 + len(candidates)
+    entries = [(query_label, _as_xy(query, "plot_ranking query", closed=closed), None, None)]
+    for r, c in enumerate(candidates, start=1):
+        if not isinstance(c, Sequence) or isinstance(c, str) or len(c) not in (3, 4):
+            raise ShapeTreeError(
+                f"plot_ranking: candidate #{r} must be a (label, points, cost) or "
+                f"(label, points, cost, highlight) tuple, got {type(c).__name__}"
+            )
+        pts = _as_xy(c[1], f"plot_ranking candidate #{r} ({c[0]})", closed=closed)
+        entries.append((c[0], pts, c[2], c[3] if len(c) > 3 else False))
+    k = len(entries)
     rows, cols = _grid(k, ncols)
     fig = new_figure(panel_size * cols, panel_size * rows + 0.45)
     axes = fig.subplots(rows, cols, squeeze=False).ravel()
-    entries = [(query_label, query, None, None)] + [
-        (c[0], c[1], c[2], c[3] if len(c) > 3 else False) for c in candidates
-    ]
     for r, (label, pts, cost, hi) in enumerate(entries):
         ax = axes[r]
-        p = _closed_path(_normalise(np.asarray(pts, dtype=float), invert_y), closed)
+        p = _closed_path(_normalise(pts, invert_y), closed)
         if cost is None:
             colour, head = CURVE_COLOR, label
         else:

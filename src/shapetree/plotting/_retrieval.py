@@ -18,6 +18,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
+from shapetree.curves._validate import _as_xy
 from shapetree.plotting._save import check_figure_path, new_figure, save_figure
 
 __all__ = [
@@ -31,9 +32,9 @@ __all__ = [
 PathArg = str | os.PathLike[str]
 
 
-def _draw(ax: Axes, curve: ArrayLike, colour: str, invert_y: bool = True) -> None:
-    c = np.asarray(curve, dtype=float)
-    c = np.vstack([c, c[:1]])
+def _draw(ax: Axes, curve: np.ndarray, colour: str, invert_y: bool = True) -> None:
+    """One closed curve (already read with ``_as_xy``), filled."""
+    c = np.vstack([curve, curve[:1]])
     ax.fill(c[:, 0], c[:, 1], color=colour, alpha=0.25, lw=0)
     ax.plot(c[:, 0], c[:, 1], color=colour, lw=1.2)
     ax.set_aspect("equal")
@@ -70,7 +71,9 @@ def plot_retrieval_grid(
     labels : array_like, shape (n,)
         Class of each shape.
     curves : sequence of array_like, each shape (k, 2)
-        The shapes (closed curves), in the order of ``D``.
+        The shapes (closed curves), in the order of ``D``; each may also be any other form
+        :func:`shapetree.curves.as_curve` accepts (an OpenCV contour ``(k, 1, 2)``, a
+        shapely ``Polygon``: its exterior, ...).
     path : path-like, optional
         Save the figure there (atomically, see :func:`save_figure`).
     queries : sequence of int, optional
@@ -88,6 +91,11 @@ def plot_retrieval_grid(
     -------
     matplotlib.figure.Figure
         ``len(queries) * (n_top + 1)`` axes, row-major.
+
+    Raises
+    ------
+    CurveError
+        If a shape drawn is none of the accepted forms (the message names ``curves[i]``).
     """
     from shapetree.retrieval._protocols import ranked_neighbours
 
@@ -106,14 +114,21 @@ def plot_retrieval_grid(
     nq = len(queries)
     fig = new_figure(1.1 * (n_top + 1), 1.15 * nq + (0.3 if title else 0.0))
     axes = fig.subplots(nq, n_top + 1, squeeze=False)
+    read: dict[int, np.ndarray] = {}
+
+    def curve(i: int) -> np.ndarray:
+        if i not in read:
+            read[i] = _as_xy(curves[i], f"plot_retrieval_grid curves[{i}]", closed=True)
+        return read[i]
+
     for r, q in enumerate(queries):
-        _draw(axes[r, 0], curves[q], "black", invert_y)
+        _draw(axes[r, 0], curve(q), "black", invert_y)
         axes[r, 0].set_ylabel(str(lab[q])[:12], fontsize=7)
         for k in range(n_top):
             j = order[q, k]
             ok = lab[j] == lab[q]
             ax = axes[r, k + 1]
-            _draw(ax, curves[j], "tab:blue" if ok else "red", invert_y)
+            _draw(ax, curve(int(j)), "tab:blue" if ok else "red", invert_y)
             if not ok:
                 for s in ax.spines.values():
                     s.set_color("red")
@@ -200,6 +215,8 @@ def _search_figure(
     per_row: int = 6,
 ) -> Figure:
     """A query outline and its nearest shapes in rank order, with captions (y down)."""
+    q = _as_xy(query, "search query", closed=True)
+    shapes = [_as_xy(c, f"search match #{i}", closed=True) for i, c in enumerate(matches, 1)]
     n = len(matches) + 1
     cols = min(per_row, n)
     rows = -(-n // cols)
@@ -207,10 +224,10 @@ def _search_figure(
     axes = fig.subplots(rows, cols, squeeze=False)
     for ax in axes.ravel():
         ax.axis("off")
-    _draw(axes[0, 0], query, "black")
+    _draw(axes[0, 0], q, "black")
     axes[0, 0].axis("on")
     axes[0, 0].set_title("query", fontsize=8)
-    for i, (curve, cap) in enumerate(zip(matches, captions), start=1):
+    for i, (curve, cap) in enumerate(zip(shapes, captions), start=1):
         ax = axes[i // cols, i % cols]
         _draw(ax, curve, "tab:blue")
         ax.axis("on")
@@ -252,9 +269,10 @@ def save_search(
     Parameters
     ----------
     query : array_like, shape (n, 2)
-        Closed curve in image coordinates (y down).
+        Closed curve in image coordinates (y down), or any other form
+        :func:`shapetree.curves.as_curve` accepts (OpenCV contour, shapely ``Polygon``, ...).
     matches : sequence of array_like, each shape (k, 2)
-        The nearest shapes, best first.
+        The nearest shapes, best first (same forms as ``query``).
     captions : sequence of str
         One per match (e.g. name and distance).
     path : path-like
