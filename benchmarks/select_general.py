@@ -58,10 +58,12 @@ SUBSETS = {"kimia99": None, "mpeg7": 6, "swedish_leaf": 20}
 #: bases: everything but n_trees / phases / mirror / symmetrize
 BASES = {
     "lp1": MatchConfig(n_points=50, band=3.0, length_power=1.0),
-    "occ2": MatchConfig(n_points=50, band=3.0, occlusion=2.0),
+    "occ2": MatchConfig(n_points=50, band=3.0, length_power=1.0, occlusion=2.0),
     "lp1.5": MatchConfig(n_points=50, band=3.0, length_power=1.5),
-    "tf2": MatchConfig(n_points=50, band=3.0, target_factor=2, segment_weight=0.0),
-    "exact": MatchConfig(n_points=50, band=None),
+    "tf2": MatchConfig(
+        n_points=50, band=3.0, length_power=1.0, target_factor=2, segment_weight=0.0
+    ),
+    "exact": MatchConfig(n_points=50, band=None, length_power=1.0),
 }
 PHASE_SETS = {1: (0,), 2: (0, 2), 4: (0, 1, 2, 3)}  # in quarters of a spacing
 MAX_RUNS = 8

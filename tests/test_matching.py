@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from shapetree import ShapeTreeError
 from shapetree.matching import (
-    MatchConfig,
+    PRESETS,
     MatchParams,
     match,
     match_cost,
@@ -31,9 +31,7 @@ from shapetree.tree import build_shape_tree, deform
 
 #: match() as the oracle defines it: the points as given, one shape-tree, no mirror, no
 #: band, one target phase, float64 tables (the "general" preset is none of these)
-EXACT = MatchConfig(
-    n_points=None, n_trees=1, mirror=False, band=None, phases=1, precision="float64"
-)
+EXACT = PRESETS["paper"].replace(n_points=None, precision="float64")
 
 
 def _seed(*key: object) -> int:

@@ -18,9 +18,7 @@ from shapetree.matching import PRESETS, MatchConfig
 from shapetree.retrieval import EVAL_PARAMS, directed_costs, evaluate
 
 #: regression pin, measured with this code: ``evaluate("kimia99", KIMIA_FAST)``.
-KIMIA_FAST = MatchConfig(
-    n_points=40, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=None, phases=1
-)
+KIMIA_FAST = PRESETS["paper"].replace(n_points=40, band=2.0, mirror=True)
 KIMIA_FAST_RANKS = [99, 99, 99, 98, 98, 97, 96, 93, 88, 68]  # sum 935
 #: the same matrix re-ranked by TPG diffusion (``rerank="tpg"``, not a pairwise measure).
 KIMIA_FAST_TPG_RANKS = [99] * 10
@@ -32,9 +30,7 @@ KIMIA_DEFAULT_RANKS = [99, 99, 99, 99, 99, 98, 97, 98, 94, 88]
 
 #: ten MPEG-7 classes (20 shapes each), including hard ones.
 MPEG7_CLASSES = "apple,bat,beetle,bird,Bone,camel,deer,device4,horse,pocket"
-MPEG7_FAST = MatchConfig(
-    n_points=32, band=2.0, mirror=True, symmetrize="none", n_trees=1, occlusion=None, phases=1
-)
+MPEG7_FAST = PRESETS["paper"].replace(n_points=32, band=2.0, mirror=True)
 MPEG7_FAST_BULLSEYE = 90.5  # regression pin: measured 90.95; threshold slightly below
 
 

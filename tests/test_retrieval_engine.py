@@ -18,7 +18,7 @@ import pytest
 from shapetree import ShapeTreeError
 from shapetree.curves import resample
 from shapetree.matching import (
-    MatchConfig,
+    PRESETS,
     MatchParams,
     match_cost,
     mirror_curve,
@@ -30,7 +30,7 @@ from shapetree.retrieval import distance_matrix as _distance_matrix
 from shapetree.retrieval._engine import read_block, write_block
 
 #: the literal matcher on the given sampling: the options these tests change start from it
-RAW = MatchConfig(n_points=50, n_trees=1, mirror=False, band=None, phases=1)
+RAW = PRESETS["paper"]
 
 
 def directed_costs(*args, **kw):
