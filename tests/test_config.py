@@ -262,3 +262,20 @@ def test_general_preset_costs_little_against_a_rotated_image() -> None:
             ratios[name].append(match(own, rotated, name).cost / near)
     assert np.median(ratios["general"]) <= 0.1, ratios
     assert np.median(ratios["paper"]) > np.median(ratios["general"])
+
+
+def test_search_ranks_by_the_match_cost() -> None:
+    from shapetree.retrieval import search
+
+    q = _blob(20)
+    db = [_blob(21), 2.0 * q + 1.0, _blob(22), mirror_curve(q)]
+    cfg = MatchConfig(n_points=20, precision="float64")
+    idx, dist = search(q, db, cfg, workers=1)
+    assert set(idx[:2].tolist()) == {1, 3}  # the scaled copy and the mirror image come first
+    assert np.all(np.diff(dist) >= 0)
+    for i, d in zip(idx, dist):
+        assert d == pytest.approx(max(match(q, db[i], cfg).cost, 0.0), rel=1e-6, abs=1e-12)
+    top, _ = search(q, db, cfg, k=2, workers=1)
+    assert top.tolist() == idx[:2].tolist()
+    with pytest.raises(ShapeTreeError, match="non-empty"):
+        search(q, [], cfg)

@@ -201,7 +201,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     """``shapetree search``."""
     from shapetree.matching._api import model_curve
     from shapetree.plotting._save import check_figure_path
-    from shapetree.retrieval import distance_matrix
+    from shapetree.retrieval import search
 
     if args.plot:
         check_figure_path(args.plot)
@@ -209,9 +209,9 @@ def cmd_search(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     query_points = read_outline(args.query)
     curves, names = _load_args(args.database, args)
-    d = distance_matrix([query_points], curves, config, progress=progress, workers=args.workers)[0]
-    d = np.maximum(d, 0.0)  # a rounding error below zero is a perfect match
-    order = np.argsort(d, kind="stable")
+    order, dist = search(query_points, curves, config, progress=progress, workers=args.workers)
+    d = np.empty(len(order))
+    d[order] = dist
     k = min(args.k, len(order))
     info(f"query {args.query}: {k} nearest of {len(names)} shapes (smaller = more similar)")
     info(f"configuration: preset {preset_of(args)} ({config.describe()})")

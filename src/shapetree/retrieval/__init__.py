@@ -5,7 +5,7 @@ Pictures of the results are drawn by :func:`shapetree.plotting.plot_retrieval_gr
 :func:`shapetree.plotting.plot_bullseye_per_class`.
 """
 
-from shapetree.retrieval._engine import combine, directed_costs, distance_matrix
+from shapetree.retrieval._engine import combine, directed_costs, distance_matrix, search
 from shapetree.retrieval._evaluate import EVAL_PARAMS, evaluate
 from shapetree.retrieval._protocols import (
     bullseye,
@@ -27,5 +27,6 @@ __all__ = [
     "kimia_ranks",
     "nn_accuracy_splits",
     "ranked_neighbours",
+    "search",
     "tpg_rerank",
 ]

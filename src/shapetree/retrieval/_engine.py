@@ -39,6 +39,7 @@ __all__ = [
     "combine",
     "directed_costs",
     "distance_matrix",
+    "search",
 ]
 
 _MAGIC = b"SHAPETREE-DMBLOCK\n"
@@ -422,3 +423,49 @@ def distance_matrix(
     if s == "mean":
         return 0.5 * (fwd + bwd)
     return np.maximum(fwd, bwd)
+
+
+def search(
+    query: ArrayLike,
+    database: Sequence[ArrayLike],
+    config: MatchConfig | str | None = None,
+    *,
+    k: int | None = None,
+    workers: int = 2,
+    progress: bool = False,
+    **options: Any,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The database shapes nearest to a query, nearest first.
+
+    Parameters
+    ----------
+    query : array_like, shape (n, 2)
+        A closed curve (array, OpenCV contour or shapely polygon).
+    database : sequence of array_like
+        Closed curves.
+    config : MatchConfig, str or None
+        Matcher configuration or preset name (default: the ``general`` preset).
+    k : int, optional
+        Return only the ``k`` nearest (default: all, ranked).
+    workers : int
+        Threads.
+    progress : bool
+        tqdm progress bar.
+    **options
+        :class:`shapetree.matching.MatchConfig` fields changed on top of ``config``.
+
+    Returns
+    -------
+    indices : ndarray of int, shape (k,)
+        Database indices, nearest first (ties by index).
+    distances : ndarray, shape (k,)
+        ``match(query, database[i], config).cost`` for each returned ``i``.
+    """
+    if len(database) == 0:
+        raise ShapeTreeError("search needs a non-empty database")
+    if k is not None and (isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1):
+        raise ShapeTreeError(f"k must be an integer >= 1 or None, got {k!r}")
+    d = distance_matrix([query], database, config, workers=workers, progress=progress, **options)
+    d = np.maximum(d[0], 0.0)  # a rounding error below zero is a perfect match
+    order = np.argsort(d, kind="stable")[: k or len(d)]
+    return order, d[order]
