@@ -77,7 +77,7 @@ def add_config_options(parser: argparse.ArgumentParser) -> None:
             type=str if choices else _parser(name, spec),
             choices=choices,
             default=argparse.SUPPRESS,
-            metavar=None if choices else name.split("_")[-1][0].upper(),
+            metavar=None if choices else spec.get("metavar", "V"),
             help=text,
         )
 

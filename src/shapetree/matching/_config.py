@@ -267,22 +267,26 @@ def resolve_config(config: MatchConfig | str | None = None, **changes: Any) -> M
 #: ``match``, ``search``, ``distances`` and ``evaluate`` are generated from this table.
 OPTIONS: dict[str, dict[str, Any]] = {
     "n_points": {
+        "metavar": "N",
         "type": int,
         "optional": True,
         "help": "resample both curves to N points, evenly in arc length (none: as given; "
         "time grows as N^4)",
     },
-    "weight": {"type": float, "help": "lambda factor of the shape-tree nodes"},
+    "weight": {"metavar": "W", "type": float, "help": "lambda factor of the shape-tree nodes"},
     "length_power": {
+        "metavar": "P",
         "type": float,
         "help": "lambda grows as (relative subcurve length)^P (the paper: 1)",
     },
     "occlusion": {
+        "metavar": "K",
         "type": float,
         "optional": True,
         "help": "replacement cost factor kappa for missing or extra parts (none: off)",
     },
     "n_trees": {
+        "metavar": "T",
         "type": int,
         "help": "shape-trees of the model tried (different start points), best kept",
     },
@@ -294,25 +298,30 @@ OPTIONS: dict[str, dict[str, Any]] = {
     },
     "mirror": {"type": bool, "help": "also match the mirrored model and keep the cheaper cost"},
     "band": {
+        "metavar": "B",
         "type": float,
         "optional": True,
         "help": "pruned matching: max stretch factor of a subcurve (none: exact, 10-30x slower)",
     },
     "phases": {
+        "metavar": "P",
         "type": int,
         "help": "also match the target resampled 1/P, 2/P, ... of a sample spacing further "
         "along and keep the cheapest (1: the paper's single sampling)",
     },
     "target_factor": {
+        "metavar": "F",
         "type": int,
         "help": "the target gets target_factor x n_points points (1: both alike)",
     },
     "segment_weight": {
+        "metavar": "W",
         "type": float,
         "help": "weight of the base case 'model segment vs target subcurve' (the paper: 1; "
         "0 makes target detail finer than the model's sampling free)",
     },
     "smooth": {
+        "metavar": "S",
         "type": float,
         "optional": True,
         "help": "Gaussian smoothing of each curve before resampling, as a fraction of its "
