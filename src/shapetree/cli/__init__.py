@@ -1,7 +1,7 @@
 """The ``shapetree`` command line.
 
-Commands: ``match``, ``tree``, ``deform``, ``search``, ``distances``, ``demo``, ``datasets``,
-``evaluate``, ``detect``
+Commands: ``match``, ``tree``, ``deform``, ``search``, ``distances``, ``index``, ``demo``,
+``datasets``, ``evaluate``, ``detect``
 (``shapetree COMMAND --help`` for each). Errors in the input (:class:`ShapeTreeError`,
 :class:`OSError`) are reported as one line ``shapetree: error: <message>`` on stderr with
 exit status 2, never a traceback.
@@ -27,6 +27,7 @@ examples:
   shapetree deform demo:hand -o deform.png        # random deformations (Fig. 4)
   shapetree search query.png shapes/ -k 5         # nearest shapes in a folder
   shapetree distances shapes/ -o D.npz            # all-pairs matrix, resumable
+  shapetree index build shapes/ -o shapes.stidx   # a prepared database (search/distances read it)
   shapetree datasets fetch mpeg7                  # download a benchmark
   shapetree evaluate mpeg7 --json mpeg7.json      # bull's-eye score
   shapetree detect model.png image.jpg -o det.png # find a shape in clutter (section 4)
@@ -55,7 +56,7 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     -------
     argparse.ArgumentParser
     """
-    from shapetree.cli import _datasets, _demo, _evaluate, _search, _shapes
+    from shapetree.cli import _datasets, _demo, _evaluate, _index, _search, _shapes
     from shapetree.cli._common import Formatter
 
     parser = argparse.ArgumentParser(
@@ -70,6 +71,7 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     _shapes.add_parsers(sub)
     _demo.add_parsers(sub)
     _search.add_parsers(sub)
+    _index.add_parsers(sub)
     _datasets.add_parsers(sub)
     _evaluate.add_parsers(sub, full=argv is not None and _wants_evaluate(argv))
     return parser

@@ -29,11 +29,13 @@ examples:
   shapetree search query.png shapes/                 # 10 nearest shapes of a folder
   shapetree search query.png shapes/ -k 5 --plot top5.png --json top5.json
   shapetree search demo:G demo:S demo:hand demo:G    # any mix of files and demo shapes
+  shapetree search query.png shapes.stidx            # a database (shapetree index build)
 
 The distance of a database shape x is the same number `shapetree match QUERY x` prints
 with the same options: by default (--preset general) psi(query deformed onto x), the lesser
 of the query and its mirror image. Folders are read for images (png, gif, bmp, tif, jpg,
-pgm...) and point files (csv, txt, npy, json).
+pgm...) and point files (csv, txt, npy, json). A database (.stidx, given alone) brings its
+own matching options: flags that disagree with them are an error.
 """
 
 DISTANCES_EPILOG = """\
@@ -41,6 +43,7 @@ examples:
   shapetree distances shapes/ -o D.npz               # all pairs, resumable
   shapetree distances shapes/ -o D.npz --csv D.csv --symmetrize mean
   shapetree distances shapes/ -o D.npz --preset paper --n-points 64
+  shapetree distances shapes.stidx -o D.npz          # a database (shapetree index build)
 
 The .npz holds D (n x n, row = query), names (n file names) and config (JSON text):
   z = numpy.load("D.npz"); D, names = z["D"], z["names"]
@@ -164,7 +167,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         formatter_class=Formatter,
     )
     p.add_argument("query", metavar="QUERY", help="query shape: image, point file or demo:NAME")
-    p.add_argument("database", metavar="SHAPE", nargs="+", help="shape files or folders")
+    p.add_argument(
+        "database", metavar="SHAPE", nargs="+", help="shape files or folders, or a .stidx database"
+    )
     p.add_argument("-k", type=positive_int, default=10, metavar="K", help="results shown")
     p.add_argument("--plot", metavar="PNG", help="draw the query and its K nearest shapes")
     p.add_argument("--json", metavar="PATH", help="write the full ranking as JSON")
@@ -179,7 +184,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         epilog=DISTANCES_EPILOG,
         formatter_class=Formatter,
     )
-    p.add_argument("shapes", metavar="SHAPE", nargs="+", help="shape files or folders")
+    p.add_argument(
+        "shapes", metavar="SHAPE", nargs="+", help="shape files or folders, or one .stidx database"
+    )
     p.add_argument("-o", "--output", metavar="NPZ", required=True, help="output .npz file")
     p.add_argument("--csv", metavar="PATH", help="also write the matrix as CSV with names")
     p.add_argument(
@@ -205,16 +212,24 @@ def cmd_search(args: argparse.Namespace) -> int:
 
     if args.plot:
         check_figure_path(args.plot)
+    from shapetree.cli._index import load_index_arg
+
     progress = not args.no_progress
-    config = config_from_args(args)
+    index = load_index_arg(args.database, args)
+    config = index.config if index is not None else config_from_args(args)
+    source = f"preset {preset_of(args)}" if index is None else f"of {args.database[0]}"
     query_points = read_outline(args.query)
-    curves, names = _load_args(args.database, args)
-    order, dist = search(query_points, curves, config, progress=progress, workers=args.workers)
+    if index is not None:
+        curves, names, database = index.outlines, index.names, index
+    else:
+        curves, names = _load_args(args.database, args)
+        database = curves
+    order, dist = search(query_points, database, config, progress=progress, workers=args.workers)
     d = np.empty(len(order))
     d[order] = dist
     k = min(args.k, len(order))
     info(f"query {args.query}: {k} nearest of {len(names)} shapes (smaller = more similar)")
-    info(f"configuration: preset {preset_of(args)} ({config.describe()})")
+    info(f"configuration: {source} ({config.describe()})")
     info(f"{'rank':>4}  {'distance':>9}  shape")
     for r, j in enumerate(order[:k], start=1):
         info(f"{r:>4}  {d[j]:9.5f}  {Path(names[j]).name}")
@@ -223,7 +238,8 @@ def cmd_search(args: argparse.Namespace) -> int:
             args.json,
             {
                 "query": args.query,
-                "preset": preset_of(args),
+                "preset": preset_of(args) if index is None else None,
+                "database": args.database[0] if index is not None else None,
                 "config": config.as_dict(),
                 "ranking": [
                     {"rank": r, "shape": names[j], "distance": float(d[j])}
@@ -237,7 +253,7 @@ def cmd_search(args: argparse.Namespace) -> int:
 
         path = plot_search(
             model_curve(query_points, config),
-            [model_curve(curves[j], config) for j in order[:k]],
+            [index.models[j] if index else model_curve(curves[j], config) for j in order[:k]],
             [f"{Path(names[j]).name}\n{d[j]:.4f}" for j in order[:k]],
             args.plot,
             title=f"{Path(args.query).name}: nearest shapes",
@@ -257,8 +273,14 @@ def cmd_distances(args: argparse.Namespace) -> int:
         raise ShapeTreeError(f"{out}: is a directory, expected a .npz file name")
     if args.csv and Path(args.csv).is_dir():
         raise ShapeTreeError(f"{args.csv}: is a directory, expected a .csv file name")
+    from shapetree.cli._index import load_index_arg
+
     progress = not args.no_progress
-    curves, names = _load_args(args.shapes, args)
+    index = load_index_arg(args.shapes, args)
+    if index is not None:
+        curves, names = index, index.names
+    else:
+        curves, names = _load_args(args.shapes, args)
     if len(curves) < 2:
         raise ShapeTreeError(f"need at least 2 shapes, got {len(curves)}")
     cache = (
@@ -268,12 +290,14 @@ def cmd_distances(args: argparse.Namespace) -> int:
         if args.cache
         else _default_distance_cache("custom")
     )
-    config = config_from_args(args)
+    config = index.config if index is not None else config_from_args(args)
     d = distance_matrix(
         curves, None, config, progress=progress, cache_dir=cache, workers=args.workers
     )
     d = np.maximum(d, 0.0)
-    meta = {"preset": preset_of(args), "config": config.as_dict()}
+    meta = {"preset": preset_of(args) if index is None else None, "config": config.as_dict()}
+    if index is not None:
+        meta["database"] = args.shapes[0]
     with atomic_open(out, "wb") as fh:
         np.savez(fh, D=d, names=np.array(names), config=np.array(json.dumps(meta)))
     info(f"{len(names)} shapes, {len(names) ** 2} ordered pairs -> {out}")

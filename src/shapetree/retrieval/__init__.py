@@ -1,5 +1,6 @@
 """All-pairs shape-tree distances (cached, resumable), the retrieval protocols of §5.1, and
-optional re-ranking of a whole distance matrix (reported apart from the pairwise scores).
+optional re-ranking of a whole distance matrix (reported apart from the pairwise scores), and
+:class:`ShapeIndex`, a prepared shape database on disk that the engine takes in place of curves.
 
 Pictures of the results are drawn by :func:`shapetree.plotting.plot_retrieval_grid` and
 :func:`shapetree.plotting.plot_bullseye_per_class`.
@@ -7,6 +8,7 @@ Pictures of the results are drawn by :func:`shapetree.plotting.plot_retrieval_gr
 
 from shapetree.retrieval._engine import combine, directed_costs, distance_matrix, search
 from shapetree.retrieval._evaluate import EVAL_PARAMS, evaluate
+from shapetree.retrieval._index import ShapeIndex
 from shapetree.retrieval._protocols import (
     bullseye,
     bullseye_per_class,
@@ -18,6 +20,7 @@ from shapetree.retrieval._rerank import tpg_rerank
 
 __all__ = [
     "EVAL_PARAMS",
+    "ShapeIndex",
     "bullseye",
     "bullseye_per_class",
     "combine",

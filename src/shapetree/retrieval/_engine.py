@@ -34,6 +34,7 @@ from shapetree.matching import MatchConfig, match_cost, prepare_model, prepare_t
 from shapetree.matching._api import kernel_params, mirror_curve, model_curve, target_curves
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._config import SYMMETRIZE, resolve_config
+from shapetree.retrieval._index import ShapeIndex
 
 __all__ = [
     "combine",
@@ -47,13 +48,33 @@ _HDR = struct.Struct("<Q")
 
 
 def _prep_models(curves: Sequence[ArrayLike], config: MatchConfig, what: str) -> list[np.ndarray]:
+    if isinstance(curves, ShapeIndex):
+        curves.check_config(config)
+        return curves.models
     return [model_curve(c, config, closed=True, name=f"{what} {i}") for i, c in enumerate(curves)]
 
 
 def _prep_targets(
     curves: Sequence[ArrayLike], config: MatchConfig, what: str
 ) -> list[list[np.ndarray]]:
+    if isinstance(curves, ShapeIndex):
+        curves.check_config(config)
+        return curves.targets
     return [target_curves(c, config, closed=True, name=f"{what} {i}") for i, c in enumerate(curves)]
+
+
+def _resolve(config: MatchConfig | str | None, options: dict, *sources: Any) -> MatchConfig:
+    """The configuration of an engine call; with a :class:`ShapeIndex` among ``sources``,
+    ``config=None`` means the index's own (``options`` change it), and any other is
+    refused (:meth:`ShapeIndex.check_config`)."""
+    index = next((s for s in sources if isinstance(s, ShapeIndex)), None)
+    if index is None:
+        return resolve_config(config, **options)
+    cfg = resolve_config(index.config if config is None else config, **options)
+    for s in sources:
+        if isinstance(s, ShapeIndex):
+            s.check_config(cfg)
+    return cfg
 
 
 def _cache_key(
@@ -200,12 +221,14 @@ def directed_costs(
 
     Parameters
     ----------
-    models : sequence of array_like, each shape (n_i, 2)
-        Closed curves whose shape-trees are deformed (rows).
-    targets : sequence of array_like, optional
+    models : sequence of array_like, each shape (n_i, 2), or ShapeIndex
+        Closed curves whose shape-trees are deformed (rows), or a prepared database
+        (:class:`shapetree.retrieval.ShapeIndex`: its stored samples are used).
+    targets : sequence of array_like or ShapeIndex, optional
         Closed curves deformed onto (columns); default ``models``.
     config : MatchConfig, str or None
-        Matcher configuration or preset name (default: the ``general`` preset);
+        Matcher configuration or preset name (default: the ``general`` preset, or the
+        configuration of a ``ShapeIndex`` given; another one than the index's is refused);
         ``symmetrize`` is not used here (see :func:`combine`).
     workers : int
         Threads (the matching kernel releases the GIL).
@@ -232,7 +255,7 @@ def directed_costs(
     ndarray, shape (n_pass, n_models, n_targets)
         ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``).
     """
-    cfg = resolve_config(config, **options)
+    cfg = _resolve(config, options, models, targets)
     if not isinstance(workers, int | np.integer) or isinstance(workers, bool) or workers < 1:
         raise ShapeTreeError(f"workers must be an integer >= 1, got {workers!r}")
     ms = _prep_models(models, cfg, "model curve")
@@ -374,10 +397,12 @@ def distance_matrix(
     curves : sequence of array_like, each shape (n_i, 2)
         Closed curves (the queries; rows of the result): ``(x, y)`` arrays, OpenCV
         contours or shapely polygons.
-    targets : sequence of array_like, optional
-        A database (columns of the result); default ``curves`` (square matrix).
+    targets : sequence of array_like or ShapeIndex, optional
+        A database (columns of the result); default ``curves`` (square matrix). Either
+        argument may be a prepared database, :class:`shapetree.retrieval.ShapeIndex`.
     config : MatchConfig, str or None
-        Matcher configuration or preset name (default: the ``general`` preset). Its
+        Matcher configuration or preset name (default: the ``general`` preset, or the
+        configuration of a ``ShapeIndex`` given, the only one accepted with it). Its
         ``symmetrize`` says how ψ(i, j) and ψ(j, i) are combined (see :func:`combine`).
     workers : int
         Threads (the kernel releases the GIL).
@@ -406,7 +431,7 @@ def distance_matrix(
     >>> D.shape, bool(D[0, 0] < 1e-6), bool(np.allclose(D, D.T))
     ((2, 2), True, True)
     """
-    cfg = resolve_config(config, **options)
+    cfg = _resolve(config, options, curves, targets)
     s = cfg.symmetrize
     kw = dict(workers=workers, cache_dir=cache_dir, progress=progress, block=block)
     if targets is None:
@@ -441,10 +466,11 @@ def search(
     ----------
     query : array_like, shape (n, 2)
         A closed curve (array, OpenCV contour or shapely polygon).
-    database : sequence of array_like
-        Closed curves.
+    database : sequence of array_like, or ShapeIndex
+        Closed curves, or a prepared database (:meth:`ShapeIndex.load`).
     config : MatchConfig, str or None
-        Matcher configuration or preset name (default: the ``general`` preset).
+        Matcher configuration or preset name (default: the ``general`` preset; with a
+        ``ShapeIndex``, its configuration, and any other is refused).
     k : int, optional
         Return only the ``k`` nearest (default: all, ranked).
     workers : int
@@ -465,7 +491,8 @@ def search(
         raise ShapeTreeError("search needs a non-empty database")
     if k is not None and (isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1):
         raise ShapeTreeError(f"k must be an integer >= 1 or None, got {k!r}")
-    d = distance_matrix([query], database, config, workers=workers, progress=progress, **options)
+    cfg = _resolve(config, options, database)
+    d = distance_matrix([query], database, cfg, workers=workers, progress=progress)
     d = np.maximum(d[0], 0.0)  # a rounding error below zero is a perfect match
     order = np.argsort(d, kind="stable")[: k or len(d)]
     return order, d[order]
