@@ -93,6 +93,8 @@ def test_search_and_distances_equal_the_curves(saved: Path, curves, query):
     np.testing.assert_array_equal(i1, i2)
     np.testing.assert_array_equal(d1, d2)
     assert NAMES[i1[0]] == "hand"
+    i3, d3 = search(query, str(saved), CFG, workers=1)  # the file name will do
+    np.testing.assert_array_equal(d3, d1)
     d_ix = distance_matrix(ix, config=CFG, progress=False, workers=1)
     np.testing.assert_array_equal(d_ix, distance_matrix(curves, config=CFG, progress=False))
     # both directions (the index as models and as targets)

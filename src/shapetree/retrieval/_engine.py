@@ -63,6 +63,13 @@ def _prep_targets(
     return [target_curves(c, config, closed=True, name=f"{what} {i}") for i, c in enumerate(curves)]
 
 
+def _source(curves: Any) -> Any:
+    """A database file name (str or path-like) is read as a :class:`ShapeIndex`."""
+    if isinstance(curves, str | os.PathLike):
+        return ShapeIndex.load(curves)
+    return curves
+
+
 def _resolve(config: MatchConfig | str | None, options: dict, *sources: Any) -> MatchConfig:
     """The configuration of an engine call; with a :class:`ShapeIndex` among ``sources``,
     ``config=None`` means the index's own (``options`` change it), and any other is
@@ -223,7 +230,8 @@ def directed_costs(
     ----------
     models : sequence of array_like, each shape (n_i, 2), or ShapeIndex
         Closed curves whose shape-trees are deformed (rows), or a prepared database
-        (:class:`shapetree.retrieval.ShapeIndex`: its stored samples are used).
+        (:class:`shapetree.retrieval.ShapeIndex` or its file name: its stored samples
+        are used).
     targets : sequence of array_like or ShapeIndex, optional
         Closed curves deformed onto (columns); default ``models``.
     config : MatchConfig, str or None
@@ -255,6 +263,7 @@ def directed_costs(
     ndarray, shape (n_pass, n_models, n_targets)
         ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``).
     """
+    models, targets = _source(models), _source(targets)
     cfg = _resolve(config, options, models, targets)
     if not isinstance(workers, int | np.integer) or isinstance(workers, bool) or workers < 1:
         raise ShapeTreeError(f"workers must be an integer >= 1, got {workers!r}")
@@ -399,7 +408,8 @@ def distance_matrix(
         contours or shapely polygons.
     targets : sequence of array_like or ShapeIndex, optional
         A database (columns of the result); default ``curves`` (square matrix). Either
-        argument may be a prepared database, :class:`shapetree.retrieval.ShapeIndex`.
+        argument may be a prepared database, :class:`shapetree.retrieval.ShapeIndex` (or
+        the name of its file).
     config : MatchConfig, str or None
         Matcher configuration or preset name (default: the ``general`` preset, or the
         configuration of a ``ShapeIndex`` given, the only one accepted with it). Its
@@ -431,6 +441,7 @@ def distance_matrix(
     >>> D.shape, bool(D[0, 0] < 1e-6), bool(np.allclose(D, D.T))
     ((2, 2), True, True)
     """
+    curves, targets = _source(curves), _source(targets)
     cfg = _resolve(config, options, curves, targets)
     s = cfg.symmetrize
     kw = dict(workers=workers, cache_dir=cache_dir, progress=progress, block=block)
@@ -466,8 +477,9 @@ def search(
     ----------
     query : array_like, shape (n, 2)
         A closed curve (array, OpenCV contour or shapely polygon).
-    database : sequence of array_like, or ShapeIndex
-        Closed curves, or a prepared database (:meth:`ShapeIndex.load`).
+    database : sequence of array_like, ShapeIndex, or path-like
+        Closed curves, or a prepared database (a :class:`ShapeIndex` or the name of its
+        file, read with :meth:`ShapeIndex.load`).
     config : MatchConfig, str or None
         Matcher configuration or preset name (default: the ``general`` preset; with a
         ``ShapeIndex``, its configuration, and any other is refused).
@@ -487,6 +499,7 @@ def search(
     distances : ndarray, shape (k,)
         ``match(query, database[i], config).cost`` for each returned ``i``.
     """
+    database = _source(database)
     if len(database) == 0:
         raise ShapeTreeError("search needs a non-empty database")
     if k is not None and (isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1):
