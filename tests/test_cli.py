@@ -38,6 +38,7 @@ COMMAND_OPTIONS = {
     "detect": ["--edges", "--output", "--json", "-k"],
     "search": ["-k", "--plot", "--json", "--preset", "--n-points", "--n-trees", "--mirror"],
     "distances": ["--output", "--csv", "--symmetrize", "--cache", "--no-cache", "--band"],
+    "index": ["build", "add", "info"],
 }
 
 
