@@ -9,6 +9,7 @@ Pictures of the results are drawn by :func:`shapetree.plotting.plot_retrieval_gr
 from shapetree.retrieval._engine import combine, directed_costs, distance_matrix, search
 from shapetree.retrieval._evaluate import EVAL_PARAMS, evaluate
 from shapetree.retrieval._index import ShapeIndex
+from shapetree.retrieval._knn import knn
 from shapetree.retrieval._protocols import (
     bullseye,
     bullseye_per_class,
@@ -28,6 +29,7 @@ __all__ = [
     "distance_matrix",
     "evaluate",
     "kimia_ranks",
+    "knn",
     "nn_accuracy_splits",
     "ranked_neighbours",
     "search",

@@ -1,0 +1,424 @@
+"""Exact k-nearest-neighbour search with a lower bound of the shape-tree cost.
+
+:func:`knn` returns, for every query, exactly the ``k`` database shapes (and distances)
+that the exhaustive :func:`shapetree.retrieval.search` returns, but skips most full
+matchings: it first computes a cheap lower bound ``B[q, x] <= D[q, x]`` of every pair
+(:mod:`shapetree.matching._bound`), then computes full costs best-first, in increasing
+order of the bound, and stops for a query as soon as its next bound exceeds its ``k``-th
+best full cost.
+
+Exactness. The exhaustive ranking sorts ``D[q]`` stably (ties by index). Let ``τ`` be the
+``k``-th smallest full cost computed so far for query ``q``. A database shape ``x`` whose
+bound is ``B[q, x] > τ`` has ``D[q, x] >= B[q, x] > τ``: at least ``k`` computed shapes
+rank before it whatever their indices, so it is not among the ``k`` nearest. Candidates are
+taken in increasing bound order, so once the next bound exceeds ``τ`` every remaining one
+does (``τ`` only decreases as costs are added). Shapes with a bound equal to ``τ`` are
+computed (a tie may rank them first). The ``k`` nearest of the computed shapes, ranked by
+``(distance, index)``, are then the exhaustive ``k`` nearest.
+
+The full costs are computed by the same kernel calls as :func:`~shapetree.retrieval.
+directed_costs` (:class:`~shapetree.matching._batch.ModelStack`, one row per model and
+pass, the minimum over target phases and passes), so they are bitwise the numbers
+``search`` ranks. The work runs in rounds: each round takes, for every unfinished query,
+its next ``batch`` candidates whose bound is ``<= τ``, and computes them grouped by the
+shape that is prepared as the target (one target preparation for all the queries that
+need it).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from shapetree._errors import ShapeTreeError
+from shapetree.matching import MatchConfig, prepare_model, prepare_target
+from shapetree.matching._api import kernel_params, mirror_curve
+from shapetree.matching._batch import ModelStack
+from shapetree.matching._bound import BoundStack
+from shapetree.matching._config import resolve_config
+from shapetree.retrieval._engine import _prep_models, _prep_targets
+
+__all__ = ["knn", "lower_bounds"]
+
+#: ``keep_from`` of the bound when not given: the two top levels of the shape-tree are
+#: dropped (benchmarks/bench_knn.py: tightness and cost of 1, 2, 3).
+DEFAULT_KEEP_FROM = 2
+
+
+def _models(curves: list[np.ndarray], cfg: MatchConfig) -> list[list]:
+    """Per curve its prepared models, one per pass (plain, mirrored)."""
+    kw = dict(
+        closed=True,
+        n_trees=cfg.n_trees,
+        split=cfg.split,
+        weight=cfg.weight,
+        length_power=cfg.length_power,
+    )
+    out = []
+    for a in curves:
+        ms = [prepare_model(a, **kw)]
+        if cfg.mirror:
+            ms.append(prepare_model(mirror_curve(a), **kw))
+        out.append(ms)
+    return out
+
+
+def _target(b: np.ndarray, cfg: MatchConfig):
+    return prepare_target(b, closed=True, length_power=cfg.length_power, dtype=cfg.dtype)
+
+
+def _check_sizes(models: list[list], targets: list[list[np.ndarray]]) -> int:
+    sizes = {ms[0].points.shape[0] for ms in models}
+    tsizes = {b.shape[0] for bs in targets for b in bs}
+    if len(sizes) != 1 or len(tsizes) != 1:
+        raise ShapeTreeError(
+            "knn needs every curve resampled to one number of points (set n_points in the "
+            "configuration)"
+        )
+    return next(iter(tsizes))
+
+
+class _Direction:
+    """One direction of matching: ``models[i]`` (rows) deformed onto ``targets[j]``."""
+
+    def __init__(
+        self,
+        models: list[list],
+        targets: list[list[np.ndarray]],
+        cfg: MatchConfig,
+        keep_from: int | None,
+        keep_top: int,
+    ) -> None:
+        self.models, self.targets, self.cfg = models, targets, cfg
+        self.m = _check_sizes(models, targets)
+        self.params = kernel_params(cfg)
+        self.n_pass = cfg.n_pass
+        self.keep_from, self.keep_top = keep_from, keep_top
+        self._bound_stacks: dict[tuple[int, ...], BoundStack] = {}
+
+    def _flat(self, rows: Sequence[int]) -> list:
+        # pass-major, as the engine stacks them: [plain rows..., mirrored rows...]
+        return [self.models[i][p] for p in range(self.n_pass) for i in rows]
+
+    def bounds_for_target(self, j: int, rows: Sequence[int]) -> np.ndarray:
+        """Lower bounds of ``cost(rows, j)``."""
+        key = tuple(rows)
+        stack = self._bound_stacks.get(key)
+        if stack is None:
+            stack = self._bound_stacks[key] = BoundStack(
+                self._flat(rows),
+                self.m,
+                self.params,
+                self.cfg.dtype,
+                keep_from=self.keep_from,
+                keep_top=self.keep_top,
+            )
+        best = np.full(len(rows), np.inf)
+        for b in self.targets[j]:
+            c = stack.bounds(_target(b, self.cfg)).reshape(self.n_pass, len(rows)).min(axis=0)
+            np.minimum(best, c, out=best)
+        return best
+
+    def costs_for_target(self, j: int, rows: Sequence[int]) -> np.ndarray:
+        """Full directed costs of ``rows`` onto target ``j`` (the engine's numbers)."""
+        stack = ModelStack(self._flat(rows), self.m, self.params, self.cfg.dtype)
+        out = np.full((self.n_pass, len(rows)), np.inf)
+        for b in self.targets[j]:
+            c = stack.costs(_target(b, self.cfg)).reshape(self.n_pass, len(rows))
+            np.minimum(out, c, out=out)
+        return out.min(axis=0)
+
+
+def _run(jobs: list[Callable[[], Any]], workers: int) -> list[Any]:
+    if workers <= 1 or len(jobs) <= 1:
+        return [f() for f in jobs]
+    with ThreadPoolExecutor(max_workers=workers) as ex:
+        return list(ex.map(lambda f: f(), jobs))
+
+
+def _chunks(items: Sequence[int], n: int) -> list[list[int]]:
+    n = max(1, min(n, len(items)))
+    return [list(items[i::n]) for i in range(n)]
+
+
+def _combine(fwd: np.ndarray | None, bwd: np.ndarray | None, sym: str) -> np.ndarray:
+    if sym == "none":
+        assert fwd is not None
+        return fwd
+    if sym == "reverse":
+        assert bwd is not None
+        return bwd
+    assert fwd is not None and bwd is not None
+    if sym == "min":
+        return np.minimum(fwd, bwd)
+    if sym == "mean":
+        return 0.5 * (fwd + bwd)
+    return np.maximum(fwd, bwd)
+
+
+class _Pairs:
+    """Bounds and full costs of query x database pairs under one configuration."""
+
+    def __init__(
+        self,
+        queries: Sequence[ArrayLike],
+        database: Sequence[ArrayLike],
+        cfg: MatchConfig,
+        keep_from: int | None,
+        keep_top: int,
+        workers: int,
+    ) -> None:
+        self.cfg, self.workers = cfg, workers
+        self.sym = cfg.symmetrize
+        self.nq, self.nd = len(queries), len(database)
+        self.fwd = self.bwd = None
+        if self.sym != "reverse":
+            qm = _models(_prep_models(queries, cfg, "query"), cfg)
+            dt = _prep_targets(database, cfg, "database curve")
+            self.fwd = _Direction(qm, dt, cfg, keep_from, keep_top)
+        if self.sym != "none":
+            dm = _models(_prep_models(database, cfg, "database curve"), cfg)
+            qt = _prep_targets(queries, cfg, "query")
+            self.bwd = _Direction(dm, qt, cfg, keep_from, keep_top)
+
+    def bounds(self) -> np.ndarray:
+        """``B[q, x] <= D[q, x]`` for every pair, shape (n_queries, n_database)."""
+        fwd = bwd = None
+        if self.fwd is not None:
+            fwd = np.empty((self.nq, self.nd))
+            rows = list(range(self.nq))
+
+            def fjob(js: list[int]) -> Callable[[], None]:
+                def run() -> None:
+                    for j in js:
+                        fwd[:, j] = self.fwd.bounds_for_target(j, rows)
+
+                return run
+
+            _run([fjob(js) for js in _chunks(range(self.nd), self.workers)], self.workers)
+        if self.bwd is not None:
+            bwd = np.empty((self.nq, self.nd))
+            rows = list(range(self.nd))
+
+            def bjob(qs: list[int]) -> Callable[[], None]:
+                def run() -> None:
+                    for q in qs:
+                        bwd[q] = self.bwd.bounds_for_target(q, rows)
+
+                return run
+
+            _run([bjob(qs) for qs in _chunks(range(self.nq), self.workers)], self.workers)
+        return np.maximum(_combine(fwd, bwd, self.sym), 0.0)
+
+    def costs(self, pairs: list[tuple[int, int]]) -> np.ndarray:
+        """Full distances of ``(q, x)`` pairs, equal to ``search``'s (``>= 0``)."""
+        fwd = bwd = None
+        if self.fwd is not None:
+            fwd = self._direction_costs(self.fwd, [(x, q) for q, x in pairs], pairs)
+        if self.bwd is not None:
+            bwd = self._direction_costs(self.bwd, [(q, x) for q, x in pairs], pairs)
+        return np.maximum(_combine(fwd, bwd, self.sym), 0.0)
+
+    def _direction_costs(
+        self, d: _Direction, by_target: list[tuple[int, int]], pairs: list
+    ) -> np.ndarray:
+        # group the pairs by the curve that is the target (one preparation for its group)
+        groups: dict[int, list[int]] = {}
+        for i, (j, _row) in enumerate(by_target):
+            groups.setdefault(j, []).append(i)
+        out = np.empty(len(pairs))
+        keys = sorted(groups)
+
+        def job(js: list[int]) -> Callable[[], None]:
+            def run() -> None:
+                for j in js:
+                    idx = groups[j]
+                    rows = [by_target[i][1] for i in idx]
+                    out[idx] = d.costs_for_target(j, rows)
+
+            return run
+
+        _run([job(js) for js in _chunks(keys, self.workers)], self.workers)
+        return out
+
+
+def _check_int(name: str, v: Any, lo: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
+        raise ShapeTreeError(f"{name} must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def lower_bounds(
+    queries: Sequence[ArrayLike],
+    database: Sequence[ArrayLike],
+    config: MatchConfig | str | None = None,
+    *,
+    keep_from: int | None = DEFAULT_KEEP_FROM,
+    keep_top: int = 0,
+    workers: int = 2,
+    **options: Any,
+) -> np.ndarray:
+    """Lower bounds of the distances :func:`~shapetree.retrieval.distance_matrix` gives.
+
+    Parameters
+    ----------
+    queries, database : sequence of array_like
+        Closed curves (rows, columns).
+    config : MatchConfig, str or None
+        Needs ``n_points`` (one size for every curve); every ``symmetrize`` is supported.
+    keep_from, keep_top : int
+        Nodes of the model's shape-tree of depth ``>= keep_from`` or ``< keep_top`` are
+        matched exactly, the others dropped (:mod:`shapetree.matching._bound`).
+    workers : int
+    **options
+        :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
+
+    Returns
+    -------
+    ndarray, shape (len(queries), len(database))
+        ``B[q, x] <= distance_matrix(queries, database, config)[q, x]``.
+    """
+    cfg = resolve_config(config, **options)
+    workers = _check_int("workers", workers, 1)
+    if len(queries) == 0 or len(database) == 0:
+        raise ShapeTreeError("lower_bounds needs at least one query and one database curve")
+    return _Pairs(
+        queries, database, cfg, keep_from, _check_int("keep_top", keep_top, 0), workers
+    ).bounds()
+
+
+def knn(
+    queries: Sequence[ArrayLike],
+    database: Sequence[ArrayLike],
+    config: MatchConfig | str | None = None,
+    *,
+    k: int = 10,
+    workers: int = 2,
+    progress: bool = False,
+    stats: dict | None = None,
+    keep_from: int | None = DEFAULT_KEEP_FROM,
+    keep_top: int = 0,
+    batch: int | None = None,
+    **options: Any,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest database shapes of every query, exactly as exhaustive search.
+
+    Parameters
+    ----------
+    queries : sequence of array_like
+        Closed curves (arrays, OpenCV contours or shapely polygons).
+    database : sequence of array_like
+        Closed curves.
+    config : MatchConfig, str or None
+        Matcher configuration or preset name (default: the ``general`` preset); it needs
+        ``n_points`` (every curve resampled to one size). Every ``symmetrize`` is
+        supported (``"none"``: ``D[q, x] = ψ(q onto x)``; the others bound both
+        directions).
+    k : int
+        Neighbours per query (at most the database size).
+    workers : int
+        Threads (the kernels release the GIL).
+    progress : bool
+        Print one line per round (candidates computed, queries still open).
+    stats : dict, optional
+        Filled with ``pairs``, ``full`` (full matchings computed), ``skipped`` (their
+        complement, as a fraction), ``rounds``, ``bound_seconds``, ``full_seconds``,
+        ``seconds`` and, per query, ``full_per_query``.
+    keep_from, keep_top : int
+        Which levels of the shape-tree the bound matches exactly
+        (:mod:`shapetree.matching._bound`); the default drops the two top levels.
+    batch : int, optional
+        Candidates per query per round (default ``max(4, k // 2)``; the first round
+        takes ``k``).
+    **options
+        :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
+
+    Returns
+    -------
+    indices : ndarray of int, shape (len(queries), k)
+        Database indices, nearest first, ties by index: row ``q`` equals
+        ``search(queries[q], database, config, k=k)[0]``.
+    distances : ndarray, shape (len(queries), k)
+        Their distances (``search``'s numbers, ``match(...).cost``).
+    """
+    t_start = time.perf_counter()
+    cfg = resolve_config(config, **options)
+    workers = _check_int("workers", workers, 1)
+    k = _check_int("k", k, 1)
+    keep_top = _check_int("keep_top", keep_top, 0)
+    if keep_from is not None:
+        keep_from = _check_int("keep_from", keep_from, 0)
+    nq, nd = len(queries), len(database)
+    if nq == 0 or nd == 0:
+        raise ShapeTreeError(f"knn needs at least one query and one database curve, got {nq}, {nd}")
+    k = min(k, nd)
+    step = max(4, k // 2) if batch is None else _check_int("batch", batch, 1)
+    pairs = _Pairs(queries, database, cfg, keep_from, keep_top, workers)
+    bound = pairs.bounds()
+    t_bound = time.perf_counter() - t_start
+    order = np.argsort(bound, axis=1, kind="stable")
+    dist = np.full((nq, nd), np.inf)
+    done = np.zeros((nq, nd), dtype=bool)
+    ptr = np.zeros(nq, dtype=np.int64)
+    count = np.zeros(nq, dtype=np.int64)
+    open_q = np.ones(nq, dtype=bool)
+    rounds = 0
+    t_full = 0.0
+    while True:
+        todo: list[tuple[int, int]] = []
+        for q in np.flatnonzero(open_q):
+            # τ: the k-th smallest full cost computed so far (inf before k are known)
+            tau = np.partition(dist[q], k - 1)[k - 1] if count[q] >= k else np.inf
+            take = k if rounds == 0 else step
+            got = 0
+            while ptr[q] < nd and got < take:
+                x = int(order[q, ptr[q]])
+                if bound[q, x] > tau:
+                    break  # every later candidate has a bound >= this one: all pruned
+                todo.append((int(q), x))
+                ptr[q] += 1
+                got += 1
+            if got == 0:
+                open_q[q] = False
+        if not todo:
+            break
+        rounds += 1
+        t0 = time.perf_counter()
+        c = pairs.costs(todo)
+        t_full += time.perf_counter() - t0
+        for (q, x), v in zip(todo, c):
+            dist[q, x] = v
+            done[q, x] = True
+            count[q] += 1
+        if progress:
+            print(
+                f"knn round {rounds}: {len(todo)} full matchings, {int(open_q.sum())} queries open",
+                flush=True,
+            )
+    idx = np.empty((nq, k), dtype=np.int64)
+    out = np.empty((nq, k))
+    cols = np.arange(nd)
+    for q in range(nq):
+        comp = cols[done[q]]
+        # rank the computed shapes by (distance, index), as a stable argsort of D[q]
+        rank = comp[np.lexsort((comp, dist[q, comp]))][:k]
+        idx[q] = rank
+        out[q] = dist[q, rank]
+    if stats is not None:
+        n_full = int(done.sum())
+        stats.update(
+            pairs=nq * nd,
+            full=n_full,
+            skipped=1.0 - n_full / (nq * nd),
+            rounds=rounds,
+            bound_seconds=t_bound,
+            full_seconds=t_full,
+            seconds=time.perf_counter() - t_start,
+            full_per_query=done.sum(axis=1).tolist(),
+        )
+    return idx, out
