@@ -20,9 +20,9 @@ The full costs are computed by the same kernel calls as :func:`~shapetree.retrie
 directed_costs` (:class:`~shapetree.matching._batch.ModelStack`, one row per model and
 pass, the minimum over target phases and passes), so they are bitwise the numbers
 ``search`` ranks. The work runs in rounds: each round takes, for every unfinished query,
-its next ``batch`` candidates whose bound is ``<= τ``, and computes them grouped by the
-shape that is prepared as the target (one target preparation for all the queries that
-need it).
+its next candidates whose bound is ``<= τ`` (``k`` in the first round, then at least
+``batch`` and as many as it has computed), and computes them grouped by the shape that is
+prepared as the target (one target preparation for all the queries that need it).
 """
 
 from __future__ import annotations
@@ -45,9 +45,21 @@ from shapetree.retrieval._engine import _prep_models, _prep_targets
 
 __all__ = ["knn", "lower_bounds"]
 
-#: ``keep_from`` of the bound when not given: the two top levels of the shape-tree are
-#: dropped (benchmarks/bench_knn.py: tightness and cost of 1, 2, 3).
-DEFAULT_KEEP_FROM = 2
+#: The bound's kept levels when not given (``"auto"``), ``(keep_from, keep_top)``: under a
+#: band the roots are dropped (the top levels hold most of the work; dropping two halves
+#: the tightness, benchmarks/bench_knn.py); without a band every node costs the same and
+#: the four top levels are kept.
+AUTO_KEEP = {"band": (1, 0), "no band": (None, 4)}
+
+
+def _keep(cfg: MatchConfig, keep_from: int | None | str, keep_top: int | str):
+    """``(keep_from, keep_top)`` checked, ``"auto"`` resolved by :data:`AUTO_KEEP`."""
+    auto = AUTO_KEEP["band" if cfg.band is not None else "no band"]
+    kf = auto[0] if keep_from == "auto" else keep_from
+    kt = auto[1] if keep_top == "auto" else keep_top
+    if kf is not None:
+        kf = _check_int("keep_from", kf, 0)
+    return kf, _check_int("keep_top", kt, 0)
 
 
 def _models(curves: list[np.ndarray], cfg: MatchConfig) -> list[list]:
@@ -258,8 +270,8 @@ def lower_bounds(
     database: Sequence[ArrayLike],
     config: MatchConfig | str | None = None,
     *,
-    keep_from: int | None = DEFAULT_KEEP_FROM,
-    keep_top: int = 0,
+    keep_from: int | None | str = "auto",
+    keep_top: int | str = "auto",
     workers: int = 2,
     **options: Any,
 ) -> np.ndarray:
@@ -271,9 +283,10 @@ def lower_bounds(
         Closed curves (rows, columns).
     config : MatchConfig, str or None
         Needs ``n_points`` (one size for every curve); every ``symmetrize`` is supported.
-    keep_from, keep_top : int
-        Nodes of the model's shape-tree of depth ``>= keep_from`` or ``< keep_top`` are
-        matched exactly, the others dropped (:mod:`shapetree.matching._bound`).
+    keep_from, keep_top : int, None or "auto"
+        Nodes of the model's shape-tree of depth ``>= keep_from`` (``None``: none by this
+        rule) or ``< keep_top`` are matched exactly, the others dropped
+        (:mod:`shapetree.matching._bound`); ``"auto"``: :data:`AUTO_KEEP`.
     workers : int
     **options
         :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
@@ -287,9 +300,7 @@ def lower_bounds(
     workers = _check_int("workers", workers, 1)
     if len(queries) == 0 or len(database) == 0:
         raise ShapeTreeError("lower_bounds needs at least one query and one database curve")
-    return _Pairs(
-        queries, database, cfg, keep_from, _check_int("keep_top", keep_top, 0), workers
-    ).bounds()
+    return _Pairs(queries, database, cfg, *_keep(cfg, keep_from, keep_top), workers).bounds()
 
 
 def knn(
@@ -301,8 +312,8 @@ def knn(
     workers: int = 2,
     progress: bool = False,
     stats: dict | None = None,
-    keep_from: int | None = DEFAULT_KEEP_FROM,
-    keep_top: int = 0,
+    keep_from: int | None | str = "auto",
+    keep_top: int | str = "auto",
     batch: int | None = None,
     **options: Any,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -329,12 +340,14 @@ def knn(
         Filled with ``pairs``, ``full`` (full matchings computed), ``skipped`` (their
         complement, as a fraction), ``rounds``, ``bound_seconds``, ``full_seconds``,
         ``seconds`` and, per query, ``full_per_query``.
-    keep_from, keep_top : int
-        Which levels of the shape-tree the bound matches exactly
-        (:mod:`shapetree.matching._bound`); the default drops the two top levels.
+    keep_from, keep_top : int, None or "auto"
+        Which levels of the shape-tree the bound matches exactly (:func:`lower_bounds`);
+        ``"auto"``: under a band all but the roots, without one the four top levels
+        (:data:`AUTO_KEEP`).
     batch : int, optional
-        Candidates per query per round (default ``max(4, k // 2)``; the first round
-        takes ``k``).
+        Least candidates per query per round after the first (default ``max(4, k // 2)``);
+        the first round takes ``k``, later ones at least as many as the query has already
+        computed (so the rounds stay few when the bound prunes little).
     **options
         :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
 
@@ -350,9 +363,7 @@ def knn(
     cfg = resolve_config(config, **options)
     workers = _check_int("workers", workers, 1)
     k = _check_int("k", k, 1)
-    keep_top = _check_int("keep_top", keep_top, 0)
-    if keep_from is not None:
-        keep_from = _check_int("keep_from", keep_from, 0)
+    keep_from, keep_top = _keep(cfg, keep_from, keep_top)
     nq, nd = len(queries), len(database)
     if nq == 0 or nd == 0:
         raise ShapeTreeError(f"knn needs at least one query and one database curve, got {nq}, {nd}")
@@ -374,7 +385,9 @@ def knn(
         for q in np.flatnonzero(open_q):
             # τ: the k-th smallest full cost computed so far (inf before k are known)
             tau = np.partition(dist[q], k - 1)[k - 1] if count[q] >= k else np.inf
-            take = k if rounds == 0 else step
+            # k first, then at least `step` more, doubling what the query has computed (a
+            # few rounds even when the bound prunes little: each round prepares its targets)
+            take = k if rounds == 0 else max(step, int(count[q]))
             got = 0
             while ptr[q] < nd and got < take:
                 x = int(order[q, ptr[q]])
