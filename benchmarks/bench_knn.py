@@ -12,7 +12,9 @@ this one run, on the same queries and database:
   quantiles, and how many pairs exceed the cost: must be 0), the fraction of pairs whose
   bound exceeds the query's k-th cost (``ideal skip``: what a best-first search can skip),
   and ``knn`` itself: its wall time, the fraction of full matchings it skipped, and whether
-  its indices and distances equal ``search``'s (they must).
+  its indices and distances equal ``search``'s (they must);
+* ``skip_if_tightness``: the fraction a bound equal to ``r`` times the cost would skip
+  (how tight a bound must be on this set).
 
 Run::
 
@@ -55,11 +57,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--keep", choices=sorted(KEEPS), default=None)
+    ap.add_argument(
+        "--keep-from", type=int, action="append", default=None, help="only these (repeatable)"
+    )
     ap.add_argument("--json", type=Path, default=RESULTS / "bench_knn.json")
     args = ap.parse_args(argv)
 
     cfg = MatchConfig.preset(args.preset)
     keeps = KEEPS[args.keep or ("paper" if cfg.band is None else "band")]
+    if args.keep_from:
+        keeps = [{"keep_from": int(v)} for v in args.keep_from]
     curves = load(args.dataset, n_points=None, progress=False).curves
     rng = np.random.default_rng(args.seed)
     n_db = len(curves) if args.database <= 0 else min(args.database, len(curves))
@@ -86,6 +93,10 @@ def main(argv: list[str] | None = None) -> int:
     ref_dist = np.array([r[1] for r in ref])
     tau = np.sort(d_full, axis=1)[:, k - 1 : k]
     full_pair_ms = 1e3 * t_matrix / pairs
+    # what a bound of uniform tightness r (bound = r * cost) would skip: how tight a bound
+    # must be for a given skip fraction on this set
+    skip_if = {str(r): float(np.mean(r * d_full > tau)) for r in (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)}
+    print("skip fraction of a bound = r * cost:", skip_if, flush=True)
     print(
         f"exhaustive: search {t_search:.1f} s ({1e3 * t_search / pairs:.3f} ms/pair), "
         f"distance_matrix {t_matrix:.1f} s ({full_pair_ms:.3f} ms/pair)",
@@ -157,6 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         search_seconds=t_search,
         matrix_seconds=t_matrix,
         full_ms_per_pair=full_pair_ms,
+        skip_if_tightness=skip_if,
         rows=rows,
         machine=machine(),
     )

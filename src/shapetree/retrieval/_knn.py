@@ -117,8 +117,8 @@ class _Direction:
         # pass-major, as the engine stacks them: [plain rows..., mirrored rows...]
         return [self.models[i][p] for p in range(self.n_pass) for i in rows]
 
-    def bounds_for_target(self, j: int, rows: Sequence[int]) -> np.ndarray:
-        """Lower bounds of ``cost(rows, j)``."""
+    def bound_stack(self, rows: Sequence[int]) -> BoundStack:
+        """The bound's stack of ``rows`` (built once per set of rows)."""
         key = tuple(rows)
         stack = self._bound_stacks.get(key)
         if stack is None:
@@ -130,6 +130,11 @@ class _Direction:
                 keep_from=self.keep_from,
                 keep_top=self.keep_top,
             )
+        return stack
+
+    def bounds_for_target(self, j: int, rows: Sequence[int]) -> np.ndarray:
+        """Lower bounds of ``cost(rows, j)``."""
+        stack = self.bound_stack(rows)
         best = np.full(len(rows), np.inf)
         for b in self.targets[j]:
             c = stack.bounds(_target(b, self.cfg)).reshape(self.n_pass, len(rows)).min(axis=0)
@@ -204,6 +209,7 @@ class _Pairs:
         if self.fwd is not None:
             fwd = np.empty((self.nq, self.nd))
             rows = list(range(self.nq))
+            self.fwd.bound_stack(rows)  # built once, before the threads share it
 
             def fjob(js: list[int]) -> Callable[[], None]:
                 def run() -> None:
@@ -216,6 +222,7 @@ class _Pairs:
         if self.bwd is not None:
             bwd = np.empty((self.nq, self.nd))
             rows = list(range(self.nd))
+            self.bwd.bound_stack(rows)
 
             def bjob(qs: list[int]) -> Callable[[], None]:
                 def run() -> None:
