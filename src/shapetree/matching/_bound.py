@@ -346,7 +346,8 @@ class BoundStack:
     params : MatchParams, optional
     dtype : {numpy.float64, numpy.float32}
     keep_from, keep_top : int
-        Which nodes are computed exactly (:func:`keep_mask`); the rest are dropped.
+        Which nodes are computed exactly (:func:`keep_mask`; the default drops the two
+        roots); the rest are dropped.
     """
 
     def __init__(
@@ -356,7 +357,7 @@ class BoundStack:
         params: MatchParams | None = None,
         dtype: type = np.float64,
         *,
-        keep_from: int | None = 2,
+        keep_from: int | None = 1,
         keep_top: int = 0,
     ) -> None:
         self.params = params or MatchParams()
