@@ -77,6 +77,10 @@ def test_knn_prunes_and_keeps_ties_by_index():
     np.testing.assert_array_equal(dist, ref_dist)
     assert list(idx[0]) == [0, 3, 6, 9]  # equal distances: by index
     assert stats["skipped"] > 0.3  # the other shapes' bounds exceed the copies' ~0 cost
+    # strict best-first in small rounds: the same answer
+    idx2, dist2 = knn(queries, database, "paper", n_points=16, k=4, batch=1, workers=2)
+    np.testing.assert_array_equal(idx2, ref_idx)
+    np.testing.assert_array_equal(dist2, ref_dist)
 
 
 def test_knn_k_larger_than_database_and_one_query(kimia):

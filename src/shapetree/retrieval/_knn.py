@@ -20,9 +20,9 @@ The full costs are computed by the same kernel calls as :func:`~shapetree.retrie
 directed_costs` (:class:`~shapetree.matching._batch.ModelStack`, one row per model and
 pass, the minimum over target phases and passes), so they are bitwise the numbers
 ``search`` ranks. The work runs in rounds: each round takes, for every unfinished query,
-its next candidates whose bound is ``<= τ`` (``k`` in the first round, then at least
-``batch`` and as many as it has computed), and computes them grouped by the shape that is
-prepared as the target (one target preparation for all the queries that need it).
+its next candidates whose bound is ``<= τ`` (``k`` in the first round, then by default
+all of them), and computes them grouped by the shape that is prepared as the target (one
+target preparation for all the queries that need it).
 """
 
 from __future__ import annotations
@@ -352,9 +352,11 @@ def knn(
         ``"auto"``: under a band all but the roots, without one the four top levels
         (:data:`AUTO_KEEP`).
     batch : int, optional
-        Least candidates per query per round after the first (default ``max(4, k // 2)``);
-        the first round takes ``k``, later ones at least as many as the query has already
-        computed (so the rounds stay few when the bound prunes little).
+        The first round computes each query's ``k`` candidates of smallest bound; by
+        default the second computes every candidate whose bound is ``<= τ`` (two rounds,
+        each database shape prepared as a target at most twice). With ``batch``, later
+        rounds take at least ``batch`` and as many as the query has computed (closer to
+        strict best-first order, more rounds).
     **options
         :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
 
@@ -375,7 +377,7 @@ def knn(
     if nq == 0 or nd == 0:
         raise ShapeTreeError(f"knn needs at least one query and one database curve, got {nq}, {nd}")
     k = min(k, nd)
-    step = max(4, k // 2) if batch is None else _check_int("batch", batch, 1)
+    step = nd if batch is None else _check_int("batch", batch, 1)
     pairs = _Pairs(queries, database, cfg, keep_from, keep_top, workers)
     bound = pairs.bounds()
     t_bound = time.perf_counter() - t_start
@@ -392,8 +394,9 @@ def knn(
         for q in np.flatnonzero(open_q):
             # τ: the k-th smallest full cost computed so far (inf before k are known)
             tau = np.partition(dist[q], k - 1)[k - 1] if count[q] >= k else np.inf
-            # k first, then at least `step` more, doubling what the query has computed (a
-            # few rounds even when the bound prunes little: each round prepares its targets)
+            # k first; then (batch=None) every candidate whose bound is <= τ in one round:
+            # two rounds in all, each target prepared at most twice; with a batch, at
+            # least `batch` more and as many as the query has computed (doubling)
             take = k if rounds == 0 else max(step, int(count[q]))
             got = 0
             while ptr[q] < nd and got < take:
