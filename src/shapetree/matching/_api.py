@@ -17,7 +17,14 @@ from shapetree.matching._config import MatchConfig, resolve_config
 from shapetree.matching._match import MatchParams, MatchResult, match_cost, match_prepared
 from shapetree.matching._prepare import prepare_model, prepare_target
 
-__all__ = ["kernel_params", "match", "mirror_curve", "model_curve", "target_curves"]
+__all__ = [
+    "kernel_params",
+    "match",
+    "mirror_curve",
+    "model_curve",
+    "model_passes",
+    "target_curves",
+]
 
 
 def mirror_curve(points: ArrayLike, *, closed: bool = True) -> np.ndarray:
@@ -112,6 +119,23 @@ def kernel_params(config: MatchConfig) -> MatchParams:
     )
 
 
+def model_passes(model_pts: np.ndarray, config: MatchConfig, *, closed: bool = True) -> list:
+    """The prepared model of each pass: the sampled curve, then (with ``mirror``) its
+    mirror image; ``config``'s shape-trees, midpoint rule and λ."""
+    kw = dict(
+        closed=closed,
+        # an open curve has one shape-tree per midpoint rule (its ends are fixed)
+        n_trees=config.n_trees if closed else min(config.n_trees, 2),
+        split=config.split,
+        weight=config.weight,
+        length_power=config.length_power,
+    )
+    curves = [model_pts]
+    if config.mirror:
+        curves.append(mirror_curve(model_pts, closed=closed))
+    return [prepare_model(c, **kw) for c in curves]
+
+
 def _unmirror(res: MatchResult, original: np.ndarray, closed: bool) -> MatchResult:
     """Express a matching of the mirrored model in the original model's indices."""
     n = original.shape[0]
@@ -140,17 +164,7 @@ def _directed(
     """ψ(A, B) under ``config``: the cheapest over mirror passes, phases and shape-trees."""
     model_pts = model_curve(a, config, closed=closed, name=names[0])
     targets = target_curves(b, config, closed=closed, name=names[1])
-    kw = dict(
-        closed=closed,
-        # an open curve has one shape-tree per midpoint rule (its ends are fixed)
-        n_trees=config.n_trees if closed else min(config.n_trees, 2),
-        split=config.split,
-        weight=config.weight,
-        length_power=config.length_power,
-    )
-    passes = [(False, prepare_model(model_pts, **kw))]
-    if config.mirror:
-        passes.append((True, prepare_model(mirror_curve(model_pts, closed=closed), **kw)))
+    passes = list(enumerate(model_passes(model_pts, config, closed=closed)))
     params = kernel_params(config)
     best: tuple[float, int, bool, Any] | None = None
     for phase, pts in enumerate(targets):
@@ -158,7 +172,7 @@ def _directed(
         for mirrored, model in passes:
             c = match_cost(model, t, params)
             if best is None or c < best[0]:
-                best = (c, phase, mirrored, (model, t))
+                best = (c, phase, bool(mirrored), (model, t))
     assert best is not None
     cost, phase, mirrored, (model, t) = best
     if correspondence:

@@ -80,8 +80,9 @@ from numba import njit
 
 from shapetree._errors import ShapeTreeError
 from shapetree.geometry._dif import FASTMATH, lagrange_form, weighted_dif
+from shapetree.matching._batch import ModelStack
 from shapetree.matching._kernels import SENTINEL, closed_root_min, finite_or_inf
-from shapetree.matching._match import MatchParams, _bands, _buffers, _check_pair
+from shapetree.matching._match import MatchParams, _buffers, _check_pair
 from shapetree.matching._prepare import Model, Target, TreeData
 
 __all__ = ["BOUND_SLACK", "BoundStack", "keep_mask", "table_marks"]
@@ -331,8 +332,9 @@ def closed_bounds(
         out[r] = closed_root_min(tab[a], tab[b], lmin[r, a], lmax[r, a], lmin[r, b], lmax[r, b])[0]
 
 
-class BoundStack:
-    """Lower bounds of ψ for many closed models against a target in one kernel call.
+class BoundStack(ModelStack):
+    """Lower bounds of ψ for many closed models against a target in one kernel call
+    (a :class:`ModelStack`, whose ``costs`` it keeps, plus which tables are kept).
 
     The twin of :class:`shapetree.matching._batch.ModelStack` (same arguments, same
     checks): ``bounds(target)[i] <= ModelStack(...).costs(target)[i]`` for every model.
@@ -360,43 +362,10 @@ class BoundStack:
         keep_from: int | None = 1,
         keep_top: int = 0,
     ) -> None:
-        self.params = params or MatchParams()
-        models = list(models)
-        if not models:
-            raise ShapeTreeError("BoundStack needs at least one model")
-        first = models[0]
-        n, n_trees = first.points.shape[0], len(first.trees)
-        for mod in models:
-            if not mod.closed:
-                raise ShapeTreeError("BoundStack takes closed models only")
-            if mod.points.shape[0] != n or len(mod.trees) != n_trees:
-                raise ShapeTreeError(
-                    "BoundStack needs models with equal numbers of points and shape-trees"
-                )
-            if mod.length_power != first.length_power:
-                raise ShapeTreeError("BoundStack needs models with the same length_power")
-        self.models = models
-        self.m = int(m)
-        self.n_models, self.n_trees = len(models), n_trees
-        tds = [td for mod in models for td in mod.trees]
-        bands = [_bands(td, self.m, self.params.band) for td in tds]
-        self.dtype = np.dtype(dtype)
-        per_tree = [td.kernel_arrays(self.dtype) for td in tds]
-
-        def stack(name: str) -> np.ndarray:
-            return np.ascontiguousarray(np.stack([getattr(td, name) for td in tds]))
-
-        self._arrays = (
-            stack("left_tab"),
-            stack("right_tab"),
-            *(np.ascontiguousarray(np.stack(col)) for col in zip(*per_tree)),
-            np.ascontiguousarray(np.stack([b[0] for b in bands])),
-            np.ascontiguousarray(np.stack([b[1] for b in bands])),
-            np.array([td.table_of_root(td.tree.roots[0], 0) for td in tds], dtype=np.int64),
-            np.array([td.table_of_root(td.tree.roots[1], 1) for td in tds], dtype=np.int64),
-            np.ascontiguousarray(np.stack([table_marks(td, keep_from, keep_top) for td in tds])),
-        )
-        self._n_tables = tds[0].n_tables
+        super().__init__(models, m, params, dtype)
+        tds = [td for mod in self.models for td in mod.trees]
+        marks = np.stack([table_marks(td, keep_from, keep_top) for td in tds])
+        self._marks = np.ascontiguousarray(marks)
 
     def bounds(self, target: Target) -> np.ndarray:
         """A lower bound of ψ(model_i, target) for every model (minimum over its trees),
@@ -412,6 +381,7 @@ class BoundStack:
         out = np.empty(self.n_models * self.n_trees, dtype=self.dtype)
         closed_bounds(
             *self._arrays,
+            self._marks,
             target.tri,
             target.deg,
             target.g,

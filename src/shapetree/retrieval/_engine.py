@@ -30,8 +30,8 @@ from numpy.typing import ArrayLike
 
 from shapetree._atomic import atomic_write_bytes
 from shapetree._errors import ShapeTreeError
-from shapetree.matching import MatchConfig, match_cost, prepare_model, prepare_target
-from shapetree.matching._api import kernel_params, mirror_curve, model_curve, target_curves
+from shapetree.matching import MatchConfig, match_cost, prepare_target
+from shapetree.matching._api import kernel_params, model_curve, model_passes, target_curves
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._config import SYMMETRIZE, resolve_config
 from shapetree.retrieval._index import ShapeIndex
@@ -180,16 +180,8 @@ def _compute_block(
     """Directed costs of ``models`` (rows) against every target (given at each of its
     phases, the cheapest phase kept): shape (n_pass, r, m)."""
     mp = kernel_params(config)
-    kw = dict(
-        closed=True,
-        n_trees=config.n_trees,
-        split=config.split,
-        weight=config.weight,
-        length_power=config.length_power,
-    )
-    passes = [[prepare_model(a, **kw) for a in models]]
-    if config.mirror:
-        passes.append([prepare_model(mirror_curve(a), **kw) for a in models])
+    per_model = [model_passes(a, config) for a in models]
+    passes = [[pm[p] for pm in per_model] for p in range(config.n_pass)]
     out = np.empty((len(passes), len(models), len(targets)))
     flat = [mod for ms in passes for mod in ms]
     sizes = {a.shape[0] for a in models}

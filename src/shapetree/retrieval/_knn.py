@@ -36,8 +36,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
-from shapetree.matching import MatchConfig, prepare_model, prepare_target
-from shapetree.matching._api import kernel_params, mirror_curve
+from shapetree.matching import MatchConfig, prepare_target
+from shapetree.matching._api import kernel_params, model_passes
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._bound import BoundStack
 from shapetree.matching._config import resolve_config
@@ -64,20 +64,7 @@ def _keep(cfg: MatchConfig, keep_from: int | None | str, keep_top: int | str):
 
 def _models(curves: list[np.ndarray], cfg: MatchConfig) -> list[list]:
     """Per curve its prepared models, one per pass (plain, mirrored)."""
-    kw = dict(
-        closed=True,
-        n_trees=cfg.n_trees,
-        split=cfg.split,
-        weight=cfg.weight,
-        length_power=cfg.length_power,
-    )
-    out = []
-    for a in curves:
-        ms = [prepare_model(a, **kw)]
-        if cfg.mirror:
-            ms.append(prepare_model(mirror_curve(a), **kw))
-        out.append(ms)
-    return out
+    return [model_passes(a, cfg) for a in curves]
 
 
 def _target(b: np.ndarray, cfg: MatchConfig):
