@@ -56,7 +56,7 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     -------
     argparse.ArgumentParser
     """
-    from shapetree.cli import _datasets, _demo, _evaluate, _index, _search, _shapes
+    from shapetree.cli import _datasets, _demo, _detect, _evaluate, _index, _search, _shapes
     from shapetree.cli._common import Formatter
 
     parser = argparse.ArgumentParser(
@@ -74,6 +74,7 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     _index.add_parsers(sub)
     _datasets.add_parsers(sub)
     _evaluate.add_parsers(sub, full=argv is not None and _wants_evaluate(argv))
+    _detect.add_parsers(sub)
     return parser
 
 
