@@ -300,3 +300,15 @@ def test_bad_sampling_options_are_named(bad, words):
     kw = dict(dict(n_points=12, workers=1, progress=False), **bad)
     with pytest.raises(ShapeTreeError, match=words):
         distance_matrix(_shapes(3, seed=1), **kw)
+
+
+@pytest.mark.parametrize("block", [0, -2, 2.5, True, "4"])
+def test_bad_block_is_named(block) -> None:
+    with pytest.raises(ShapeTreeError, match="block must be an integer >= 1 or None"):
+        distance_matrix(_shapes(3), n_points=12, block=block, workers=1, progress=False)
+
+
+def test_threads_stats_name_the_engine() -> None:
+    stats: dict = {}
+    c = directed_costs(_shapes(3), n_points=12, block=1, workers=1, progress=False, stats=stats)
+    assert stats["engine"] == "threads" and stats["pairs_computed"] == 9 and c.shape[1:] == (3, 3)

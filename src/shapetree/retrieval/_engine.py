@@ -8,7 +8,10 @@ killed resumes where it stopped and a damaged block is detected and recomputed. 
 key includes :func:`shapetree._cache.code_fingerprint` (package version and the source of
 every module that changes a cost), so an upgrade never silently reuses stale distances.
 
-The kernel of :mod:`shapetree.matching` releases the GIL, so the blocks run in threads.
+The kernel of :mod:`shapetree.matching` releases the GIL, so the blocks run in threads; with
+``scheduler=`` they run as tasks on a ``dask.distributed`` cluster instead
+(:mod:`shapetree.retrieval._dask`, imported only then), bitwise the same, with the blocks
+written to the same cache by this process as they arrive.
 """
 
 from __future__ import annotations
@@ -214,6 +217,7 @@ def directed_costs(
     progress: bool = True,
     desc: str = "matching",
     stats: dict | None = None,
+    scheduler: Any = None,
     **options: Any,
 ) -> np.ndarray:
     """Directed costs ``ψ(model_i, target_j)``, one layer per pass (plain, mirrored).
@@ -231,22 +235,34 @@ def directed_costs(
         configuration of a ``ShapeIndex`` given; another one than the index's is refused);
         ``symmetrize`` is not used here (see :func:`combine`).
     workers : int
-        Threads (the matching kernel releases the GIL).
+        Threads (the matching kernel releases the GIL); not used with ``scheduler``.
     cache_dir : path-like, optional
         Folder for finished row blocks; a sub-folder named by the cache key (a SHA-256 of
         the package version and kernel sources, the configuration and the sampled curves)
         is used, so a stale block can never be reused after an upgrade.
     block : int, optional
         Rows per block (the unit of work, of caching and of resumption); default
-        ``ceil(n_models / (4 workers))``, at most 32. Each target is prepared once per
-        block, so larger blocks spend less time on that.
+        ``ceil(n_models / (4 workers))``, at most 32, where ``workers`` is the cluster's
+        worker threads with ``scheduler``. Each target is prepared once per block, so
+        larger blocks spend less time on that. A cache is resumed block by block, so pass
+        the same ``block`` (or the same worker count) to resume a run.
     progress : bool
         Show a tqdm progress bar with ETA.
     desc : str
         Progress-bar label.
     stats : dict, optional
         Filled with ``pairs``, ``pairs_computed``, ``blocks``, ``blocks_cached``,
-        ``seconds`` and ``key``.
+        ``seconds``, ``key`` and ``engine`` (``"threads"`` or ``"dask"``).
+    scheduler : None, str, distributed.Client or DaskScheduler
+        Where the blocks run. ``None``: ``workers`` threads here. A
+        ``distributed.Client`` (left open), a scheduler address (``"tcp://host:8786"``,
+        connected to), or ``"local:N"`` (a ``LocalCluster`` of ``N`` one-thread worker
+        processes, started for the call and closed after it): the blocks run as Dask
+        tasks (``pip install "shapetree[dask]"``), the result bitwise the threaded one;
+        this process writes each finished block to ``cache_dir`` as it arrives, so
+        workers need no shared file system and an interrupted run resumes. The cluster is
+        connected to (or started) only when a block has to be computed. See
+        :mod:`shapetree.retrieval._dask`.
     **options
         :class:`shapetree.matching.MatchConfig` fields changed on top of ``config``.
 
@@ -255,18 +271,69 @@ def directed_costs(
     ndarray, shape (n_pass, n_models, n_targets)
         ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``).
     """
+    sched, owned = _check_scheduler(scheduler)
+    try:
+        return _directed_costs(
+            models,
+            targets,
+            config,
+            options,
+            sched,
+            workers=workers,
+            cache_dir=cache_dir,
+            block=block,
+            progress=progress,
+            desc=desc,
+            stats=stats,
+        )
+    finally:
+        if owned:
+            sched.close()
+
+
+def _check_scheduler(scheduler: Any) -> tuple[Any, bool]:
+    """``(DaskScheduler or None, owned)``: the ``scheduler=`` value validated (the Dask
+    module is imported only when one is given)."""
+    if scheduler is None:
+        return None, False
+    from shapetree.retrieval._dask import check_scheduler
+
+    return check_scheduler(scheduler)
+
+
+def _directed_costs(
+    models: Any,
+    targets: Any,
+    config: MatchConfig | str | None,
+    options: dict,
+    sched: Any,
+    *,
+    workers: int,
+    cache_dir: str | os.PathLike[str] | None,
+    block: int | None,
+    progress: bool,
+    desc: str,
+    stats: dict | None,
+) -> np.ndarray:
+    """:func:`directed_costs` with ``scheduler`` already validated (``sched``: a
+    :class:`~shapetree.retrieval._dask.DaskScheduler` or ``None`` for threads)."""
     models, targets = _source(models), _source(targets)
     cfg = _resolve(config, options, models, targets)
     if not isinstance(workers, int | np.integer) or isinstance(workers, bool) or workers < 1:
         raise ShapeTreeError(f"workers must be an integer >= 1, got {workers!r}")
+    if block is not None and (
+        isinstance(block, bool) or not isinstance(block, int | np.integer) or block < 1
+    ):
+        raise ShapeTreeError(f"block must be an integer >= 1 or None, got {block!r}")
     ms = _prep_models(models, cfg, "model curve")
     tv = _prep_targets(models if targets is None else targets, cfg, "target curve")
     n, m = len(ms), len(tv)
     if n == 0 or m == 0:
         raise ShapeTreeError(f"need at least one model and one target, got {n} and {m}")
     if block is None:
-        block = min(32, -(-n // (4 * int(workers))))
-    block = max(1, int(block))
+        threads = int(workers) if sched is None else sched.n_threads()
+        block = min(32, -(-n // (4 * threads)))
+    block = int(block)
     out = np.empty((cfg.n_pass, n, m))
     ranges = [(r0, min(n, r0 + block)) for r0 in range(0, n, block)]
     folder = None
@@ -312,8 +379,17 @@ def directed_costs(
             write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
         return r0, r1, arr
 
+    def store(r0: int, r1: int, arr: np.ndarray) -> None:
+        if folder is not None:
+            write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
+        out[:, r0:r1] = arr
+
     try:
-        if int(workers) <= 1 or len(todo) <= 1:
+        if sched is not None and todo:
+            from shapetree.retrieval._dask import run_blocks
+
+            run_blocks(sched, ms, tv, cfg, todo, key=key, on_block=store, bar=bar)
+        elif int(workers) <= 1 or len(todo) <= 1:
             for r0, r1 in todo:
                 _, _, arr = job(r0, r1)
                 out[:, r0:r1] = arr
@@ -341,6 +417,7 @@ def directed_costs(
             blocks_cached=len(ranges) - len(todo),
             seconds=time.perf_counter() - t_start,
             key=key,
+            engine="threads" if sched is None else "dask",
         )
     return out
 
@@ -389,6 +466,7 @@ def distance_matrix(
     cache_dir: str | os.PathLike[str] | None = None,
     progress: bool = True,
     block: int | None = None,
+    scheduler: Any = None,
     **options: Any,
 ) -> np.ndarray:
     """Shape-tree distances between closed curves (all pairs, or queries × database).
@@ -414,6 +492,11 @@ def distance_matrix(
         tqdm progress bar with ETA.
     block : int, optional
         Rows per cached block (see :func:`directed_costs`).
+    scheduler : None, str, distributed.Client or DaskScheduler
+        ``None`` (threads), a ``distributed.Client``, a scheduler address
+        (``"tcp://host:8786"``) or ``"local:N"``: where the blocks run (see
+        :func:`directed_costs`); the result is bitwise the threaded one. One connection
+        (or local cluster) serves both directions of a query set.
     **options
         :class:`shapetree.matching.MatchConfig` fields changed on top of ``config``.
 
@@ -433,10 +516,38 @@ def distance_matrix(
     >>> D.shape, bool(D[0, 0] < 1e-6), bool(np.allclose(D, D.T))
     ((2, 2), True, True)
     """
+    sched, owned = _check_scheduler(scheduler)
+    try:
+        return _distance_matrix(
+            curves,
+            targets,
+            config,
+            options,
+            sched,
+            workers=workers,
+            cache_dir=cache_dir,
+            progress=progress,
+            block=block,
+        )
+    finally:
+        if owned:
+            sched.close()
+
+
+def _distance_matrix(
+    curves: Any,
+    targets: Any,
+    config: MatchConfig | str | None,
+    options: dict,
+    sched: Any,
+    **kw: Any,
+) -> np.ndarray:
+    """:func:`distance_matrix` with ``scheduler`` already validated (``sched``), shared by
+    both directions."""
     curves, targets = _source(curves), _source(targets)
     cfg = _resolve(config, options, curves, targets)
     s = cfg.symmetrize
-    kw = dict(workers=workers, cache_dir=cache_dir, progress=progress, block=block)
+    kw["scheduler"] = sched
     if targets is None:
         return combine(directed_costs(curves, None, cfg, **kw), s)
     if s != "reverse":

@@ -1,0 +1,260 @@
+"""The all-pairs engine on a real ``dask.distributed`` LocalCluster (2 worker processes).
+
+Bitwise equality with the threaded engine, a worker process killed mid-run, resumption from
+the block cache across both engines, and the errors of a bad ``scheduler=``.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import distributed  # the "test" extra installs dask[distributed] (and psutil with it)
+import numpy as np
+import psutil
+import pytest
+
+from shapetree import ShapeTreeError
+from shapetree.retrieval import _dask, directed_costs, distance_matrix
+
+#: the literal matcher, small samplings: every test here takes about a second
+CFG = dict(config="paper", n_points=20, mirror=True)
+
+
+def _shapes(k: int, n: int = 48, seed: int = 0) -> list[np.ndarray]:
+    """Smooth random star-shaped closed curves, counter-clockwise."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    out = []
+    for _ in range(k):
+        r = 1 + sum(rng.uniform(-0.25, 0.25) * np.cos(f * t + rng.uniform(0, 6)) for f in (2, 3, 5))
+        out.append(np.c_[r * np.cos(t) * rng.uniform(0.6, 1.4), r * np.sin(t)])
+    return out
+
+
+def _children() -> set[int]:
+    """Child processes of this one, less multiprocessing's resource tracker (started once,
+    kept for the interpreter's life)."""
+    out = set()
+    for p in psutil.Process().children(recursive=True):
+        try:
+            if "resource_tracker" not in " ".join(p.cmdline()):
+                out.add(p.pid)
+        except psutil.Error:  # it has just exited
+            pass
+    return out
+
+
+@pytest.fixture(scope="module")
+def client():
+    before = _children()
+    cluster = _dask.local_cluster(2)  # scheduler="local:2"'s cluster: no dashboard
+    c = distributed.Client(cluster, set_as_default=False)
+    try:
+        yield c
+    finally:
+        c.close()
+        cluster.close()
+        deadline = time.time() + 30
+        while _children() - before and time.time() < deadline:
+            time.sleep(0.1)
+        assert not _children() - before, "the LocalCluster left processes behind"
+
+
+def test_square_matrix_bitwise_equal_and_progress(client, capsys) -> None:
+    curves = _shapes(12)
+    kw = dict(CFG, symmetrize="min", block=2)
+    ref = distance_matrix(curves, workers=2, progress=False, **kw)
+    stats: dict = {}
+    got = directed_costs(curves, scheduler=client, stats=stats, progress=True, **CFG, block=2)
+    assert stats["engine"] == "dask" and stats["pairs_computed"] == 144
+    assert got.shape == (2, 12, 12)
+    assert np.array_equal(np.minimum(got.min(0), got.min(0).T), ref)
+    err = capsys.readouterr().err
+    assert "144/144" in err and "dask 2 workers" in err  # the bar counted every pair
+    # default block size from the cluster's 2 threads: the threaded one with workers=2
+    assert np.array_equal(distance_matrix(curves, scheduler=client, progress=False, **kw), ref)
+    assert client.status == "running"  # a client given by the caller stays open
+
+
+@pytest.mark.parametrize("symmetrize", ["min", "none", "reverse", "mean"])
+def test_query_database_bitwise_equal(client, symmetrize) -> None:
+    curves = _shapes(14, seed=1)
+    q, db = curves[:4], curves[4:]
+    kw = dict(CFG, symmetrize=symmetrize, block=3, progress=False)
+    ref = distance_matrix(q, db, workers=2, **kw)
+    got = distance_matrix(q, db, scheduler=client, **kw)
+    assert got.shape == (4, 10) and got.dtype == ref.dtype
+    assert np.array_equal(got, ref)
+
+
+def test_local_cluster_string_starts_and_closes(tmp_path: Path) -> None:
+    curves = _shapes(10, seed=2)
+    before = _children()
+    kw = dict(CFG, symmetrize="min", block=2, progress=False)
+    ref = distance_matrix(curves[:3], curves[3:], workers=1, **kw)
+    got = distance_matrix(curves[:3], curves[3:], scheduler="local:2", cache_dir=tmp_path, **kw)
+    assert np.array_equal(got, ref)
+    assert len(list(tmp_path.glob("*/*.blk"))) == 2 + 4  # both directions, cached here
+    deadline = time.time() + 30
+    while _children() - before and time.time() < deadline:
+        time.sleep(0.1)
+    assert not _children() - before, "scheduler='local:2' left processes behind"
+
+
+def _run_in_thread(fn, *args, **kw) -> tuple[threading.Thread, dict]:
+    box: dict = {}
+
+    def target() -> None:
+        try:
+            box["result"] = fn(*args, **kw)
+        except BaseException as exc:  # handed to the test thread
+            box["error"] = exc
+
+    th = threading.Thread(target=target, daemon=True)
+    th.start()
+    return th, box
+
+
+def _kill_after_first_block(client, cache: Path, box: dict, which: str) -> tuple[list, int]:
+    """Wait for the first block file, then SIGKILL one (or both) worker processes."""
+    pids = sorted(client.run(os.getpid).values())
+    assert len(pids) == 2
+    deadline = time.time() + 60
+    while not list(cache.glob("*/*.blk")) and time.time() < deadline and not box:
+        time.sleep(0.002)
+    n_at_kill = len(list(cache.glob("*/*.blk")))
+    victims = pids[:1] if which == "one" else pids
+    for pid in victims:
+        os.kill(pid, signal.SIGKILL)
+    return victims, n_at_kill
+
+
+@pytest.mark.parametrize("which", ["one", "both"])
+def test_worker_killed_mid_run_same_matrix(client, tmp_path: Path, which: str) -> None:
+    """A killed worker's task is rescheduled (``which="one"``); with every worker killed,
+    the scattered targets are lost too and the rest is resubmitted (``"both"``)."""
+    curves = _shapes(40, seed=5)
+    kw = dict(config="paper", n_points=32, mirror=True, block=1, symmetrize="min")
+    cache = tmp_path / "cache"
+    th, box = _run_in_thread(
+        distance_matrix, curves, scheduler=client, cache_dir=cache, progress=False, **kw
+    )
+    victims, n_at_kill = _kill_after_first_block(client, cache, box, which)
+    th.join(120)
+    assert not th.is_alive()
+    assert "error" not in box, box.get("error")
+    assert 1 <= n_at_kill < 40, "the run finished before a worker could be killed"
+    ref = distance_matrix(curves, workers=2, progress=False, **kw)
+    assert np.array_equal(box["result"], ref)
+    assert len(list(cache.glob("*/*.blk"))) == 40
+    client.wait_for_workers(2, timeout=60)  # the nannies restarted the killed workers
+    assert not set(client.run(os.getpid).values()) & set(victims)
+
+
+def test_resume_across_engines(client, tmp_path: Path) -> None:
+    curves = _shapes(12, seed=3)
+    kw = dict(CFG, block=2, progress=False)
+    # dask writes, threads read: nothing computed
+    a = tmp_path / "a"
+    s1: dict = {}
+    c1 = directed_costs(curves, scheduler=client, cache_dir=a, stats=s1, **kw)
+    assert s1["pairs_computed"] == 144 and s1["blocks"] == 6
+    s2: dict = {}
+    c2 = directed_costs(curves, cache_dir=a, stats=s2, workers=2, **kw)
+    assert s2["pairs_computed"] == 0 and s2["blocks_cached"] == 6 and s2["engine"] == "threads"
+    assert np.array_equal(c1, c2)
+    # threads write, dask reads: nothing submitted
+    b = tmp_path / "b"
+    directed_costs(curves, cache_dir=b, workers=2, **kw)
+    s3: dict = {}
+    c3 = directed_costs(curves, scheduler=client, cache_dir=b, stats=s3, **kw)
+    assert s3["pairs_computed"] == 0 and s3["engine"] == "dask"
+    assert np.array_equal(c3, c1)
+    # a partial cache (a crashed client): only the missing blocks are computed
+    blocks = sorted(next(a.iterdir()).glob("*.blk"))
+    for p in blocks[1::2]:
+        p.unlink()
+    s4: dict = {}
+    c4 = directed_costs(curves, scheduler=client, cache_dir=a, stats=s4, **kw)
+    assert s4["pairs_computed"] == 3 * 2 * 12 and s4["blocks_cached"] == 3
+    assert np.array_equal(c4, c1)
+
+
+def test_worker_with_other_code_is_refused() -> None:
+    curves = [np.c_[np.cos(t), np.sin(t)] for t in [np.linspace(0, 6.2, 20)]]
+    with pytest.raises(ShapeTreeError, match="other shapetree code"):
+        _dask._block_task(curves, [curves], None, "0" * 64, (0, 1), None)
+
+
+@pytest.mark.parametrize(
+    "bad, words",
+    [
+        ("local:0", "whole number of worker processes"),
+        ("local:two", "whole number of worker processes"),
+        ("local:", "whole number of worker processes"),
+        ("threads", "not a Dask scheduler address"),
+        ("tcp//host:8786", "not a Dask scheduler address"),
+        (4, r"scheduler must be None \(threads\), a distributed.Client"),
+        (object(), r"scheduler must be None \(threads\), a distributed.Client"),
+    ],
+)
+def test_bad_scheduler_is_named(bad, words) -> None:
+    with pytest.raises(ShapeTreeError, match=words):
+        distance_matrix(_shapes(3), scheduler=bad, progress=False, **CFG)
+    with pytest.raises(ShapeTreeError, match=words):
+        directed_costs(_shapes(3), scheduler=bad, progress=False, **CFG)
+
+
+def test_unreachable_address(monkeypatch) -> None:
+    monkeypatch.setattr(_dask, "CONNECT_TIMEOUT", 1.0)
+    with socket_port() as port:  # a port nobody listens on
+        t0 = time.monotonic()
+        with pytest.raises(ShapeTreeError, match="cannot reach the Dask scheduler at"):
+            distance_matrix(_shapes(3), scheduler=f"tcp://127.0.0.1:{port}", progress=False, **CFG)
+        assert time.monotonic() - t0 < 30
+
+
+class socket_port:
+    """A free TCP port on 127.0.0.1 (bound, not listening, while in use)."""
+
+    def __enter__(self) -> int:
+        import socket
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        return self.sock.getsockname()[1]
+
+    def __exit__(self, *exc: object) -> None:
+        self.sock.close()
+
+
+def test_closed_client_is_refused() -> None:
+    c = distributed.Client(
+        processes=False, n_workers=1, dashboard_address=None, set_as_default=False
+    )
+    c.close()
+    with pytest.raises(ShapeTreeError, match="Client is closed"):
+        distance_matrix(_shapes(3), scheduler=c, progress=False, **CFG)
+
+
+def test_dask_not_installed_message(monkeypatch) -> None:
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed fails
+    with pytest.raises(ShapeTreeError, match=r'pip install "shapetree\[dask\]"'):
+        distance_matrix(_shapes(3), scheduler="local:2", progress=False, **CFG)
+
+
+def test_import_shapetree_does_not_import_dask() -> None:
+    code = (
+        "import sys, shapetree, shapetree.retrieval, shapetree.cli;"
+        "print(sorted(m for m in ('dask', 'distributed') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
+    )
+    assert out.stdout.strip() == "[]"
