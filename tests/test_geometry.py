@@ -185,3 +185,94 @@ def test_geometry_dif_functions_share_the_flags():
         fn = getattr(_dif, name)
         assert FastMathOptions(fn.targetoptions["fastmath"]).flags == set(FASTMATH)
         assert fn.targetoptions["nogil"] and fn._cache.__class__.__name__ != "NullCache"
+
+
+# --- the pseudo-hyperbolic dif (issue 15, footnote 2 of the paper) ---------------------
+
+
+def _upper(rng: np.random.Generator, n: int) -> np.ndarray:
+    return np.c_[rng.uniform(-2, 2, n), rng.uniform(0.05, 2, n)]
+
+
+def test_poincare_distance_is_a_metric_on_the_half_plane():
+    from shapetree.geometry import poincare_distance
+
+    rng = np.random.default_rng(15)
+    u, v, w = _upper(rng, 400), _upper(rng, 400), _upper(rng, 400)
+    duv, dvw, duw = poincare_distance(u, v), poincare_distance(v, w), poincare_distance(u, w)
+    assert np.all(duw <= duv + dvw + 1e-12)  # triangle inequality
+    np.testing.assert_allclose(duv, poincare_distance(v, u), rtol=0, atol=0)  # symmetric
+    assert np.all(poincare_distance(u, u) == 0) and np.all(duv > 0)
+    # the closed form on the imaginary axis: d(i a, i b) = |log(b / a)|
+    np.testing.assert_allclose(poincare_distance([0, 0.5], [0, 2.0]), np.log(4.0), rtol=1e-12)
+    # a lower point is measured as its mirror image; opposite sides / the axis: infinite
+    np.testing.assert_allclose(poincare_distance(u * [1, -1], v * [1, -1]), duv, rtol=1e-12)
+    assert poincare_distance([0, 1], [0, -1]) == np.inf
+    assert poincare_distance([0.3, 0], [0.1, 1]) == np.inf
+    assert poincare_distance([0.3, 0], [0.3, 0]) == 0
+
+
+def _tri_from_bookstein(u: np.ndarray) -> np.ndarray:
+    """Triangles (first, middle, last) = ((-1/2, 0), u, (1/2, 0))."""
+    t = np.zeros(u.shape[:-1] + (3, 2))
+    t[..., 0, 0], t[..., 2, 0] = -0.5, 0.5
+    t[..., 1, :] = u
+    return t
+
+
+def test_hyperbolic_dif_is_the_regularised_tanh_squared_of_the_geodesic():
+    from shapetree.geometry import hyperbolic_dif, poincare_distance
+    from shapetree.geometry._dif import HYPERBOLIC_EPS
+
+    rng = np.random.default_rng(16)
+    u, v = _upper(rng, 300), _upper(rng, 300)
+    got = hyperbolic_dif(_tri_from_bookstein(u), _tri_from_bookstein(v))
+    uc, vc = u[:, 0] + 1j * u[:, 1], v[:, 0] + 1j * v[:, 1]
+    gap, mir = np.abs(uc - vc) ** 2, np.abs(uc - vc.conj()) ** 2
+    np.testing.assert_allclose(got, np.minimum(gap / (mir + HYPERBOLIC_EPS), 1), rtol=1e-9)
+    # without the regularisation the value is tanh(d / 2)^2 of the Poincare geodesic
+    np.testing.assert_allclose(gap / mir, np.tanh(poincare_distance(u, v) / 2) ** 2, rtol=1e-9)
+    # monotone in the geodesic where the regularisation is negligible (far from the axis)
+    far_u, far_v = u + [0, 3], v + [0, 3]
+    d = poincare_distance(far_u, far_v)
+    h = hyperbolic_dif(_tri_from_bookstein(far_u), _tri_from_bookstein(far_v))
+    order = np.argsort(d)
+    assert np.all(np.diff(h[order]) > -1e-3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(coords, min_size=12, max_size=12), coords, st.floats(0.1, 10), coords, coords)
+def test_hyperbolic_dif_invariance_symmetry_and_zero(xs, angle, scale, tx, ty):
+    from shapetree.geometry import hyperbolic_dif
+
+    ta, tb = np.array(xs[:6]).reshape(3, 2), np.array(xs[6:]).reshape(3, 2)
+    for t in (ta, tb):
+        if np.hypot(*(t[2] - t[0])) < 1e-2 or np.hypot(*(t[1] - t[0])) < 1e-2:
+            return
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    sa = scale * ta @ rot.T + [tx, ty]
+    d = float(hyperbolic_dif(ta, tb))
+    assert 0 <= d <= 1
+    assert abs(float(hyperbolic_dif(sa, tb)) - d) < 1e-6  # similarity invariant
+    assert abs(float(hyperbolic_dif(tb, ta)) - d) < 1e-9  # symmetric
+    assert float(hyperbolic_dif(ta, sa)) < 1e-9  # equal triangles (up to a similarity)
+
+
+def test_hyperbolic_dif_degenerate_rules():
+    from shapetree.geometry import DEGENERATE_DIF, hyperbolic_dif
+    from shapetree.geometry._dif import HYPERBOLIC_EPS
+
+    up = np.array([[0, 0], [0.5, 0.4], [1, 0]], float)
+    down = up * [1, -1]  # the mirror image: opposite orientation
+    flat = np.array([[0, 0], [0.5, 0], [1, 0]], float)
+    flat2 = np.array([[0, 0], [0.8, 0], [1, 0]], float)
+    point = np.zeros((3, 2))
+    needle = np.array([[0, 0], [1, 1], [0, 0]], float)
+    needle2 = np.array([[2, 0], [5, -1], [2, 0]], float)
+    assert hyperbolic_dif(up, down) == 1.0  # mirror images
+    assert hyperbolic_dif(flat, flat * 3 + 1) == 0.0  # the same collinear shape
+    # collinear vs collinear: |u - v|^2 / (|u - v|^2 + eps); u = 0, v = 0.3
+    np.testing.assert_allclose(hyperbolic_dif(flat, flat2), 0.09 / (0.09 + HYPERBOLIC_EPS))
+    assert 0 < hyperbolic_dif(flat, up) < 1
+    assert hyperbolic_dif(point, point) == DEGENERATE_DIF == hyperbolic_dif(point, up)
+    assert hyperbolic_dif(needle, needle2) == 0.0 and hyperbolic_dif(needle, up) == 1.0

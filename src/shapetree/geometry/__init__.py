@@ -4,14 +4,18 @@
 (also used by the matching kernel and the stitching DP, all compiled with its fast-math
 flag set ``_dif.FASTMATH``). A triangle or point set whose points all coincide has zero
 size and no shape: its ``dif`` against anything is :data:`DEGENERATE_DIF` ``= 1``, the
-maximum of the squared full Procrustes distance.
+maximum of the squared full Procrustes distance. :func:`hyperbolic_dif` is the
+pseudo-hyperbolic ``dif`` of the matching option ``dif="hyperbolic"`` (Poincaré half-plane,
+:func:`poincare_distance`; footnote 2 of the paper).
 """
 
 from shapetree.geometry._bookstein import (
     bookstein,
     from_bookstein,
     helmert,
+    hyperbolic_dif,
     outline_dif,
+    poincare_distance,
     procrustes_dif,
     triangle_dif,
 )
@@ -22,7 +26,9 @@ __all__ = [
     "bookstein",
     "from_bookstein",
     "helmert",
+    "hyperbolic_dif",
     "outline_dif",
+    "poincare_distance",
     "procrustes_dif",
     "triangle_dif",
 ]

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from shapetree._errors import ShapeTreeError
 from shapetree.geometry._dif import points_dif, triangle_dif_many
 
 
@@ -27,14 +28,14 @@ def _as_points(p: ArrayLike) -> np.ndarray:
     return a
 
 
-def _triangle_dif(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+def _triangle_dif(ta: np.ndarray, tb: np.ndarray, hyper: bool = False) -> np.ndarray:
     """Broadcast two ``(..., 3, 2)`` triangle arrays and call the compiled ``dif``."""
     ta, tb = np.broadcast_arrays(ta, tb)
     shape = ta.shape[:-2]
     a = np.ascontiguousarray(ta.reshape(-1, 3, 2))
     b = np.ascontiguousarray(tb.reshape(-1, 3, 2))
     out = np.empty(a.shape[0])
-    triangle_dif_many(a, b, out)
+    triangle_dif_many(a, b, out, bool(hyper))
     return out.reshape(shape)[()]
 
 
@@ -157,6 +158,62 @@ def triangle_dif(tri_a: ArrayLike, tri_b: ArrayLike) -> np.ndarray:
         if t.shape[-2:] != (3, 2):
             raise ValueError(f"expected triangles of shape (..., 3, 2), got shape {t.shape}")
     return _triangle_dif(ta, tb)
+
+
+def hyperbolic_dif(tri_a: ArrayLike, tri_b: ArrayLike) -> np.ndarray:
+    """Pseudo-hyperbolic ``dif`` of triangles ``(first, middle, last)`` (paper, footnote 2).
+
+    With ``u``, ``v`` the Bookstein coordinates of the middle points (base ``first ->
+    last``), ``tanh^2(d / 2) = |u - v|^2 / |u - conj v|^2`` clipped to ``[0, 1]``, where
+    ``d`` is :func:`poincare_distance`. It is the ``dif`` of the matching option
+    ``dif="hyperbolic"``, computed by the one compiled implementation
+    (:mod:`shapetree.geometry._dif`, whose docstring states the rules): 0 for similar
+    triangles; 1 for triangles of opposite orientation, for a collinear triangle against
+    any other shape, and (:data:`~shapetree.geometry.DEGENERATE_DIF`) for a triangle whose
+    three points coincide.
+
+    Parameters
+    ----------
+    tri_a, tri_b : array_like, shape (..., 3, 2)
+        Triangles as ``(first, middle, last)`` points (broadcast together).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Values in ``[0, 1]``.
+    """
+    ta, tb = np.asarray(tri_a, dtype=float), np.asarray(tri_b, dtype=float)
+    for t in (ta, tb):
+        if t.shape[-2:] != (3, 2):
+            raise ShapeTreeError(f"expected triangles of shape (..., 3, 2), got shape {t.shape}")
+    return _triangle_dif(ta, tb, hyper=True)
+
+
+def poincare_distance(u: ArrayLike, v: ArrayLike) -> np.ndarray:
+    """Geodesic distance of the Poincaré half-plane between Bookstein coordinates.
+
+    ``d(u, v) = arcosh(1 + |u - v|^2 / (2 Im u Im v))`` for points on the same side of the
+    real axis (a point of the lower half-plane is measured as its mirror image, so ``d(u,
+    v) = d(conj u, conj v)``); ``inf`` for points on opposite sides or on the axis
+    (collinear triangles lie on the boundary, infinitely far), except ``0`` for ``u ==
+    v``. :func:`hyperbolic_dif` is ``tanh(d / 2) ** 2``.
+
+    Parameters
+    ----------
+    u, v : array_like, shape (..., 2)
+        Bookstein coordinates (broadcast together).
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    uu, vv = np.broadcast_arrays(_as_complex(u), _as_complex(v))
+    prod = uu.imag * vv.imag
+    gap = np.abs(uu - vv) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        arg = 1.0 + gap / (2.0 * np.where(prod > 0, prod, 1.0))
+        d = np.where(prod > 0, np.arccosh(np.maximum(arg, 1.0)), np.inf)
+    return np.where(gap == 0, 0.0, d)[()]
 
 
 def outline_dif(points_a: ArrayLike, points_b: ArrayLike) -> float:

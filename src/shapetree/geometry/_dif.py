@@ -39,6 +39,48 @@ first and last points coincide but whose middle differs is *not* degenerate: it 
 shape (a "needle" out and back) and is compared as usual. Its Helmert coordinates
 ``(0, h2)`` carry no rotation reference for ``h1``; ``h2`` is kept as it is.
 
+Hyperbolic ``dif`` (paper, footnote 2)
+--------------------------------------
+The Bookstein coordinate ``u`` of a triangle's middle point (:func:`~shapetree.geometry.
+bookstein`, with the base ``first -> last``) is a point of the plane; for triangles of the
+same orientation (``Im u``, ``Im v`` of one sign) the natural deformation measure is the
+geodesic distance of the Poincaré half-plane, ``d(u, v) = arcosh(1 + |u - v|^2 / (2 Im u
+Im v))`` (the log of the anisotropy of the affine map between the two triangles). The
+matching option ``dif="hyperbolic"`` starts from the **pseudo-hyperbolic** distance
+squared, ``tanh^2(d / 2) = |u - v|^2 / |u - conj(v)|^2``, a monotone function of ``d``
+bounded by 1 like the Procrustes ``dif``, and regularises it near the real axis:
+
+    hdif(u, v) = |u - v|^2 / (|u - conj(v)|^2 + eps),   clipped to [0, 1],
+
+with :data:`HYPERBOLIC_EPS` ``eps = 0.01``. Without ``eps`` the value is ill-conditioned
+at the boundary of the half-plane: a straight stretch of a curve gives triangles with
+``Im u`` at rounding level, and two such triangles (a shape against itself) would differ
+by an arbitrary amount in ``[0, 1]``. With ``eps`` triangles whose middle point is much
+closer than ``sqrt(eps) / 2 = 5%`` of the base length to the base line are compared like
+the Procrustes ``dif`` (``~ |u - v|^2 / eps``), curved ones hyperbolically. In Helmert
+coordinates (``u = (sqrt 3 / 2) z2 / z1``) ``|u - v|^2`` is ``(4 / 3) / (a1 b1)^2`` times
+the Procrustes Lagrange form ``|a1 b2 - a2 b1|^2`` and ``|u - conj v|^2`` the same factor
+times the form against the *mirror image* of the second triangle (``b2`` conjugated), so
+
+    hdif = |a1 b2 - a2 b1|^2 / (|a1 conj(b2) - a2 b1|^2 + (4 eps / 3) (a1 b1)^2):
+
+two Lagrange forms and one division (:func:`hyperbolic_form`), defined for every triangle
+with no Bookstein singularity. Its rules:
+
+* orientation matters: ``Im u`` and ``Im v`` of opposite signs (a triangle against a
+  mirror-image shape) give ``|u - v| >= |u - conj v|``: close to or clipped to **1** (no
+  orientation-preserving deformation joins them without passing through a collinear
+  triangle, the boundary of the half-plane);
+* a collinear triangle (middle point on the line of the base, ``Im u = 0``) against
+  another collinear one costs ``|u - v|^2 / (|u - v|^2 + eps)`` (0 for the same one);
+* a "needle" (``first == last``, ``u = infinity``, all such triangles have one shape):
+  0 against a needle, 1 against anything else;
+* a triangle of zero size (three coincident points): :data:`DEGENERATE_DIF` ``= 1``
+  against everything, as for the Procrustes ``dif``.
+
+The geodesic itself (unbounded, for points of the upper half-plane) is
+:func:`~shapetree.geometry.poincare_distance`.
+
 Compilation
 -----------
 All functions are ``numba.njit(cache=True, nogil=True)`` with the explicit fast-math
@@ -62,6 +104,13 @@ FASTMATH = frozenset({"nsz", "arcp", "contract", "afn", "reassoc"})
 
 #: ``dif`` of a point set of zero size (all points coincide) against anything.
 DEGENERATE_DIF = 1.0
+
+#: Regularisation ``eps`` of the pseudo-hyperbolic ``dif`` near the real axis (module
+#: docstring): ``hdif = |u - v|^2 / (|u - conj v|^2 + eps)`` for Bookstein coordinates.
+HYPERBOLIC_EPS = 0.01
+
+#: ``eps`` in the units of the Helmert Lagrange forms (``4 eps / 3``).
+_HYP_EPS_H = HYPERBOLIC_EPS * 4.0 / 3.0
 
 _INV_SQRT2 = 1.0 / np.sqrt(2.0)
 _INV_SQRT6 = 1.0 / np.sqrt(6.0)
@@ -127,6 +176,46 @@ def helmert_dif(a1: float, a2r: float, a2i: float, b1: float, b2r: float, b2i: f
 
 
 @_jit
+def hyperbolic_ratio(num: float, den: float) -> float:
+    """``num / den`` clipped to ``[0, 1]``, from the two Lagrange forms of the
+    pseudo-hyperbolic ``dif`` (module docstring): ``1`` when ``num >= den > 0`` or ``den
+    == 0 < num`` (opposite orientations, a collinear triangle against another shape), ``0``
+    when ``num == 0`` (the same shape, collinear or needle)."""
+    if num < den:
+        return num / den
+    return 1.0 if num > 0.0 else 0.0
+
+
+@_jit
+def hyperbolic_den(a1: float, a2r: float, a2i: float, b1: float, b2r: float, b2i: float) -> float:
+    """Denominator of the regularised pseudo-hyperbolic ``dif`` in Helmert coordinates:
+    ``|a1 conj(b2) - a2 b1|^2 + (4 eps / 3) (a1 b1)^2`` (module docstring)."""
+    p = a1 * b1
+    return lagrange_form(a1, a2r, a2i, b1, b2r, -b2i) + _HYP_EPS_H * (p * p)
+
+
+@_jit
+def hyperbolic_form(a1: float, a2r: float, a2i: float, b1: float, b2r: float, b2i: float) -> float:
+    """Regularised pseudo-hyperbolic ``dif`` of two non-degenerate triangles in
+    :func:`unit_helmert` coordinates, clipped to ``[0, 1]`` (module docstring). Scaling the
+    first triple by ``sqrt(λ)`` scales numerator and denominator alike."""
+    num = lagrange_form(a1, a2r, a2i, b1, b2r, b2i)
+    return hyperbolic_ratio(num, hyperbolic_den(a1, a2r, a2i, b1, b2r, b2i))
+
+
+@_jit
+def helmert_dif_kind(
+    a1: float, a2r: float, a2i: float, b1: float, b2r: float, b2i: float, hyper: bool
+) -> float:
+    """:func:`helmert_dif` (``hyper`` false) or the pseudo-hyperbolic ``dif`` (true)."""
+    if not hyper:
+        return helmert_dif(a1, a2r, a2i, b1, b2r, b2i)
+    if is_zero_shape(a1, a2r, a2i) or is_zero_shape(b1, b2r, b2i):
+        return DEGENERATE_DIF
+    return hyperbolic_form(a1, a2r, a2i, b1, b2r, b2i)
+
+
+@_jit
 def weighted_dif(
     lam: float, q1: float, q2r: float, q2i: float, z1: float, z2r: float, z2i: float
 ) -> float:
@@ -136,6 +225,25 @@ def weighted_dif(
     if is_zero_shape(z1, z2r, z2i):
         return lam * DEGENERATE_DIF
     return lagrange_form(q1, q2r, q2i, z1, z2r, z2i)
+
+
+@_jit
+def weighted_dif_kind(
+    lam: float,
+    q1: float,
+    q2r: float,
+    q2i: float,
+    z1: float,
+    z2r: float,
+    z2i: float,
+    hyper: bool,
+) -> float:
+    """:func:`weighted_dif` (``hyper`` false) or ``λ`` times the pseudo-hyperbolic ``dif``."""
+    if not hyper:
+        return weighted_dif(lam, q1, q2r, q2i, z1, z2r, z2i)
+    if is_zero_shape(z1, z2r, z2i):
+        return lam * DEGENERATE_DIF
+    return lam * hyperbolic_form(q1, q2r, q2i, z1, z2r, z2i)
 
 
 @_jit
@@ -152,16 +260,19 @@ def triangle_dif_xy(
     by2: float,
     bx3: float,
     by3: float,
+    hyper: bool = False,
 ) -> float:
-    """``dif`` of triangles ``a`` and ``b``, each given as ``(first, middle, last)``."""
+    """``dif`` of triangles ``a`` and ``b``, each given as ``(first, middle, last)``
+    (``hyper``: the pseudo-hyperbolic ``dif``)."""
     a1, a2r, a2i = unit_helmert(ax1, ay1, ax2, ay2, ax3, ay3)
     b1, b2r, b2i = unit_helmert(bx1, by1, bx2, by2, bx3, by3)
-    return helmert_dif(a1, a2r, a2i, b1, b2r, b2i)
+    return helmert_dif_kind(a1, a2r, a2i, b1, b2r, b2i, hyper)
 
 
 @_jit
-def triangle_dif_many(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    """``out[i] = dif(a[i], b[i])`` for triangles ``a``, ``b`` of shape ``(N, 3, 2)``."""
+def triangle_dif_many(a: np.ndarray, b: np.ndarray, out: np.ndarray, hyper: bool = False) -> None:
+    """``out[i] = dif(a[i], b[i])`` for triangles ``a``, ``b`` of shape ``(N, 3, 2)``
+    (``hyper``: the pseudo-hyperbolic ``dif``)."""
     for i in range(out.shape[0]):
         out[i] = triangle_dif_xy(
             a[i, 0, 0],
@@ -176,6 +287,7 @@ def triangle_dif_many(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
             b[i, 1, 1],
             b[i, 2, 0],
             b[i, 2, 1],
+            hyper,
         )
 
 
@@ -201,10 +313,11 @@ def weighted_dif_many(
     z2r: np.ndarray,
     z2i: np.ndarray,
     out: np.ndarray,
+    hyper: bool = False,
 ) -> None:
-    """``out[i] = weighted_dif(lam, q1, q2r, q2i, z1[i], z2r[i], z2i[i])``."""
+    """``out[i] = weighted_dif_kind(lam, q1, q2r, q2i, z1[i], z2r[i], z2i[i], hyper)``."""
     for i in range(out.shape[0]):
-        out[i] = weighted_dif(lam, q1, q2r, q2i, z1[i], z2r[i], z2i[i])
+        out[i] = weighted_dif_kind(lam, q1, q2r, q2i, z1[i], z2r[i], z2i[i], hyper)
 
 
 @_jit
@@ -248,7 +361,12 @@ def points_dif(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray) -
 __all__ = [
     "DEGENERATE_DIF",
     "FASTMATH",
+    "HYPERBOLIC_EPS",
     "helmert_dif",
+    "helmert_dif_kind",
+    "hyperbolic_den",
+    "hyperbolic_form",
+    "hyperbolic_ratio",
     "is_zero_shape",
     "lagrange_form",
     "points_dif",
@@ -257,5 +375,6 @@ __all__ = [
     "unit_helmert",
     "unit_helmert_many",
     "weighted_dif",
+    "weighted_dif_kind",
     "weighted_dif_many",
 ]
