@@ -166,3 +166,31 @@ def test_bound_never_above_distance_on_kimia99(kimia, preset, options):
     # three levels; the default drops two)
     ratio = lower_bounds(q, kimia, preset, keep_from=1, **cfg) / np.maximum(d, 1e-12)
     assert float(np.mean(ratio)) > 0.1
+
+
+def test_bound_never_above_cost_with_the_hyperbolic_dif():
+    rng = np.random.default_rng(_seed("bound-hyperbolic"))
+    for _ in range(80):
+        model, target, params, dtype = _random_case(rng)
+        hp = MatchParams(
+            occlusion=params.occlusion,
+            band=params.band,
+            segment_weight=params.segment_weight,
+            dif="hyperbolic",
+        )
+        hmodel = prepare_model(
+            model.points,
+            n_trees=len(model.trees),
+            length_power=model.length_power,
+            weight=model.weight,
+            dif="hyperbolic",
+        )
+        m = target.n_points
+        cost = ModelStack([hmodel], m, hp, dtype).costs(target)[0]
+        for kf, kt in KEEPS:
+            b = BoundStack([hmodel], m, hp, dtype, keep_from=kf, keep_top=kt).bounds(target)[0]
+            assert 0.0 <= b <= cost, (kf, kt, b, cost, hp, dtype)
+        full = BoundStack([hmodel], m, hp, dtype, keep_from=0).bounds(target)[0]
+        assert full == pytest.approx(cost * (1 - BOUND_SLACK), rel=1e-6)
+    with pytest.raises(ShapeTreeError, match="dif"):
+        ModelStack([model], target.n_points, hp, dtype)

@@ -52,7 +52,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from shapetree.geometry._dif import helmert_dif, unit_helmert
+from shapetree.geometry._dif import helmert_dif, helmert_dif_kind, unit_helmert
 
 INF = 1e30
 
@@ -72,10 +72,13 @@ def _dif(z1: complex, z2: complex, z3: complex, w1: complex, w2: complex, w3: co
 
 
 @nb.njit(cache=True)
-def _difn(a: tuple[float, float, float], w1: complex, w2: complex, w3: complex) -> float:
-    """``_dif`` with the first triangle already given by its shape ``a = _shape(...)``."""
+def _difn(
+    a: tuple[float, float, float], w1: complex, w2: complex, w3: complex, hyper: bool = False
+) -> float:
+    """``_dif`` with the first triangle already given by its shape ``a = _shape(...)``
+    (``hyper``: the pseudo-hyperbolic ``dif`` of :mod:`shapetree.geometry._dif`)."""
     b1, b2r, b2i = _shape(w1, w2, w3)
-    return helmert_dif(a[0], a[1], a[2], b1, b2r, b2i)
+    return helmert_dif_kind(a[0], a[1], a[2], b1, b2r, b2i, hyper)
 
 
 @nb.njit(cache=True)
@@ -138,6 +141,7 @@ def _stitch_kernel(
     per_end,
     max_gap,
     gap_beam,
+    hyper=False,  # pseudo-hyperbolic dif (geometry._dif) instead of Procrustes
 ):
     m = M.shape[0]
     nd = base.shape[0]
@@ -211,7 +215,7 @@ def _stitch_kernel(
                             continue
                         if L < m:
                             mid = 0.5 * (E[qi] + E[e_p[j]])
-                            c += lamf * _difn(wsh, E[e_p[i]], mid, E[e_q[j]])
+                            c += lamf * _difn(wsh, E[e_p[i]], mid, E[e_q[j]], hyper)
                         elif not near[e_q[j], e_p[i]]:
                             continue
                         info[0] = 1
@@ -258,13 +262,17 @@ def _stitch_kernel(
                             rj = E[e_p[j]]
                             sj = E[e_q[j]]
                             if L < m:
-                                t1 = fr1 * _difn(ush, pi, qi, rj) + lamf * _difn(vsh, pi, rj, sj)
-                                t2 = fr2 * _difn(xsh, qi, rj, sj) + lamf * _difn(ysh, pi, qi, sj)
+                                t1 = fr1 * _difn(ush, pi, qi, rj, hyper) + lamf * _difn(
+                                    vsh, pi, rj, sj, hyper
+                                )
+                                t2 = fr2 * _difn(xsh, qi, rj, sj, hyper) + lamf * _difn(
+                                    ysh, pi, qi, sj, hyper
+                                )
                             else:
                                 if not near[e_q[j], e_p[i]]:
                                     continue
-                                t1 = fr1 * _difn(ush, pi, qi, rj)
-                                t2 = fr2 * _difn(xsh, qi, rj, sj)
+                                t1 = fr1 * _difn(ush, pi, qi, rj, hyper)
+                                t2 = fr2 * _difn(xsh, qi, rj, sj, hyper)
                             c += t1 if t1 < t2 else t2
                             info[0] = 2
                             info[1] = i
@@ -401,6 +409,7 @@ def run_stitch(
     per_end: int,
     max_gap: int,
     gap_beam: int = 8,
+    dif: str = "procrustes",
 ) -> StitchResult:
     """Run the stitching DP.
 
@@ -428,6 +437,9 @@ def run_stitch(
         Weight of the triangle term and of a gap over the whole model.
     beam, per_end, max_gap, gap_beam : int
         Pruning limits (see module docstring).
+    dif : {"procrustes", "hyperbolic"}
+        The triangle ``dif`` of the stitching terms (``MatchConfig.dif``; the detector's
+        default is the Procrustes ``dif``).
 
     Returns
     -------
@@ -466,6 +478,7 @@ def run_stitch(
         int(per_end),
         int(max_gap),
         int(gap_beam),
+        dif == "hyperbolic",
     )
     res = StitchResult(m, arrays)
     res.gapc = gapc  # type: ignore[attr-defined]

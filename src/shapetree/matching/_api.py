@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from shapetree._errors import ShapeTreeError
 from shapetree.curves import as_curve, resample, smooth
 from shapetree.matching._config import MatchConfig, resolve_config
 from shapetree.matching._match import MatchParams, MatchResult, match_cost, match_prepared
@@ -112,16 +113,38 @@ def target_curves(
     ]
 
 
+def _check_batched(config: MatchConfig) -> None:
+    """Refuse the single-pair matchers where the batched directed kernel is asked for."""
+    if config.matcher != "directed" or config.replace_any:
+        what = "matcher='symmetric'" if config.matcher != "directed" else "replace_any=True"
+        raise ShapeTreeError(
+            f"{what} is a single-pair matcher (a dynamic program over pairs of subcurves, "
+            "not the shape-tree kernel the batched engine runs): use "
+            "shapetree.matching.match(a, b, config) or shapetree.matching._api.pair_cost "
+            "for each pair"
+        )
+
+
 def kernel_params(config: MatchConfig) -> MatchParams:
-    """The kernel-level parameters (κ, band, segment weight) of a configuration."""
+    """The kernel-level parameters (κ, band, segment weight, ``dif``) of a configuration.
+
+    Raises :class:`~shapetree.ShapeTreeError` for ``matcher="symmetric"`` or
+    ``replace_any=True``, which the shape-tree kernel does not run (use :func:`match` or
+    :func:`pair_cost`).
+    """
+    _check_batched(config)
     return MatchParams(
-        occlusion=config.occlusion, band=config.band, segment_weight=config.segment_weight
+        occlusion=config.occlusion,
+        band=config.band,
+        segment_weight=config.segment_weight,
+        dif=config.dif,
     )
 
 
 def model_passes(model_pts: np.ndarray, config: MatchConfig, *, closed: bool = True) -> list:
     """The prepared model of each pass: the sampled curve, then (with ``mirror``) its
-    mirror image; ``config``'s shape-trees, midpoint rule and λ."""
+    mirror image; ``config``'s shape-trees, midpoint rule, λ and ``dif``."""
+    _check_batched(config)
     kw = dict(
         closed=closed,
         # an open curve has one shape-tree per midpoint rule (its ends are fixed)
@@ -129,6 +152,7 @@ def model_passes(model_pts: np.ndarray, config: MatchConfig, *, closed: bool = T
         split=config.split,
         weight=config.weight,
         length_power=config.length_power,
+        dif=config.dif,
     )
     curves = [model_pts]
     if config.mirror:

@@ -65,6 +65,11 @@ class ModelStack:
                 )
             if mod.length_power != first.length_power:
                 raise ShapeTreeError("ModelStack needs models with the same length_power")
+            if mod.dif != self.params.dif:
+                raise ShapeTreeError(
+                    f"ModelStack got a model prepared for dif={mod.dif!r} with parameters "
+                    f"for dif={self.params.dif!r}"
+                )
         self.models = models
         self.m = int(m)
         self.n_models, self.n_trees = len(models), n_trees
@@ -99,7 +104,7 @@ class ModelStack:
         -------
         ndarray, shape (n_models,)
         """
-        _check_pair(self.models[0], target)
+        _check_pair(self.models[0], target, self.params)
         if target.n_points != self.m:
             raise ShapeTreeError(
                 f"this ModelStack was built for targets of {self.m} points, got {target.n_points}"
@@ -115,12 +120,13 @@ class ModelStack:
             *self._arrays,
             target.tri,
             target.deg,
-            target.g,
+            target.base_table(self.params.dif),
             target.blen,
             self.params.kernel_occlusion,
             self.params.segment_weight,
             tab,
             out,
+            self.params.hyper,
         )
         best = out.reshape(self.n_models, self.n_trees).min(axis=1).astype(np.float64)
         return np.maximum(finite_or_inf(best), 0.0)  # inf: no admissible matching

@@ -79,7 +79,13 @@ import numpy as np
 from numba import njit
 
 from shapetree._errors import ShapeTreeError
-from shapetree.geometry._dif import FASTMATH, lagrange_form, weighted_dif
+from shapetree.geometry._dif import (
+    FASTMATH,
+    hyperbolic_den,
+    hyperbolic_ratio,
+    lagrange_form,
+    weighted_dif_kind,
+)
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._kernels import SENTINEL, closed_root_min, finite_or_inf
 from shapetree.matching._match import MatchParams, _buffers, _check_pair
@@ -157,6 +163,7 @@ def fill_bound_tables(
     lmax: np.ndarray,
     tab: np.ndarray,
     prof: np.ndarray,
+    hyper: bool = False,
 ) -> None:
     """The bound tables ``T'`` of one closed shape-tree (module docstring).
 
@@ -166,6 +173,8 @@ def fill_bound_tables(
     2 m) scratch of the tables' dtype for the profiles. Kept nodes and segments run the
     loops of :func:`._kernels.fill_tables`; a dropped node ``v`` gets ``T'_v[L, s] =
     P_l[s] + E_r[s + L]`` (``flat_v`` at ``L = 1``), then the replacement cost.
+    ``hyper``: the pseudo-hyperbolic ``dif`` in the kept nodes, as the kernel (every
+    ``dif`` is ``>= 0`` either way, which is all the proof needs).
     """
     m = g.shape[1]
     n_nodes = lam.shape[0]
@@ -238,11 +247,20 @@ def fill_bound_tables(
                                 cd = (
                                     lrow[s]
                                     + rrow[s]
-                                    + weighted_dif(lvt, q1, qr, qi, z1[s], zr[s], zi[s])
+                                    + weighted_dif_kind(lvt, q1, qr, qi, z1[s], zr[s], zi[s], hyper)
                                 )
                                 if cd < best[s]:
                                     best[s] = cd
                             continue
+                    if hyper:
+                        lvh = lam[v]
+                        for s in range(ns):
+                            num = lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
+                            den = hyperbolic_den(q1, qr, qi, z1[s], zr[s], zi[s])
+                            c = lrow[s] + rrow[s] + lvh * hyperbolic_ratio(num, den)
+                            b = best[s]
+                            best[s] = c if c < b else b
+                        continue
                     for s in range(ns):
                         c = lrow[s] + rrow[s] + lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
                         b = best[s]
@@ -298,6 +316,7 @@ def closed_bounds(
     seg_weight: float,
     tab: np.ndarray,
     out: np.ndarray,
+    hyper: bool = False,
 ) -> None:
     """Bounds of many closed shape-trees against one closed target, in one call: the
     arguments of :func:`._kernels.closed_costs` plus ``mark`` (R, n_tables) uint8 from
@@ -326,6 +345,7 @@ def closed_bounds(
             lmax[r],
             tab,
             prof,
+            hyper,
         )
         a = root1[r]
         b = root2[r]
@@ -370,7 +390,7 @@ class BoundStack(ModelStack):
     def bounds(self, target: Target) -> np.ndarray:
         """A lower bound of ψ(model_i, target) for every model (minimum over its trees),
         lowered by :data:`BOUND_SLACK`; shape (n_models,), float64."""
-        _check_pair(self.models[0], target)
+        _check_pair(self.models[0], target, self.params)
         if target.n_points != self.m:
             raise ShapeTreeError(
                 f"this BoundStack was built for targets of {self.m} points, got {target.n_points}"
@@ -384,12 +404,13 @@ class BoundStack(ModelStack):
             self._marks,
             target.tri,
             target.deg,
-            target.g,
+            target.base_table(self.params.dif),
             target.blen,
             self.params.kernel_occlusion,
             self.params.segment_weight,
             tab,
             out,
+            self.params.hyper,
         )
         best = out.reshape(self.n_models, self.n_trees).min(axis=1).astype(np.float64)
         return np.maximum(finite_or_inf(best) * (1.0 - BOUND_SLACK), 0.0)

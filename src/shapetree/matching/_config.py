@@ -28,6 +28,12 @@ SYMMETRIZE = ("none", "min", "mean", "max", "reverse")
 #: Midpoint rules of the shape-trees.
 SPLIT_RULES = ("half", "best")
 
+#: Accepted ``dif`` values (the triangle dissimilarity of eq. (1)).
+DIFS = ("procrustes", "hyperbolic")
+
+#: Accepted ``matcher`` values.
+MATCHERS = ("directed", "symmetric")
+
 
 def _is_int(v: Any) -> bool:
     return isinstance(v, int | np.integer) and not isinstance(v, bool)
@@ -95,6 +101,24 @@ class MatchConfig:
         Precision of the dynamic-programming tables: float32 runs about twice as fast;
         costs then differ from float64 by about 1e-6 relative, far below the gaps that
         rank shapes.
+    dif : {"procrustes", "hyperbolic"}
+        The triangle dissimilarity of eq. (1): the squared full Procrustes distance (the
+        paper), or the pseudo-hyperbolic distance ``tanh^2(d / 2)`` of the Bookstein
+        coordinates in the Poincaré half-plane (the paper's footnote 2;
+        :func:`shapetree.geometry.hyperbolic_dif`).
+    matcher : {"directed", "symmetric"}
+        ``"directed"``: ψ(A, B), A's shape-tree deformed onto B (the paper). ``"symmetric"``:
+        a dynamic program over pairs of subcurves that splits either curve at its middle
+        sample and the other anywhere, so ψ(A, B) = ψ(B, A) exactly (the paper's footnote
+        1; :mod:`shapetree.matching._subcurves`). About O(n^2 m^2 (n + m)) time and O(n^2
+        m^2) memory: a single-pair option of :func:`~shapetree.matching.match` (hundreds
+        of times slower than directed); needs ``split="half"``, ``target_factor=1``,
+        ``segment_weight=1`` and ``symmetrize="none"``.
+    replace_any : bool
+        Arbitrary replacement (end of §3): any part of A together with any part of B may
+        be replaced at the occlusion cost, not only the subtrees of A's shape-tree. Exact,
+        O(n^3 m^3) time, single-pair (:func:`~shapetree.matching.match` only; seconds at
+        n = m = 50); needs ``occlusion`` and ``split="half"``.
     """
 
     n_points: int | None = 50
@@ -111,6 +135,9 @@ class MatchConfig:
     smooth: float | None = None
     symmetrize: str = "none"
     precision: str = "float32"
+    dif: str = "procrustes"
+    matcher: str = "directed"
+    replace_any: bool = False
 
     def __post_init__(self) -> None:
         n = self.n_points
@@ -154,6 +181,37 @@ class MatchConfig:
             raise ShapeTreeError(
                 f"precision must be one of {tuple(PRECISIONS)}, got {self.precision!r}"
             )
+        if self.dif not in DIFS:
+            raise ShapeTreeError(f"dif must be one of {DIFS}, got {self.dif!r}")
+        if self.matcher not in MATCHERS:
+            raise ShapeTreeError(f"matcher must be one of {MATCHERS}, got {self.matcher!r}")
+        if not isinstance(self.replace_any, bool | np.bool_):
+            raise ShapeTreeError(f"replace_any must be True or False, got {self.replace_any!r}")
+        if self.matcher == "symmetric":
+            bad = [
+                f"{k}={v!r}"
+                for k, v, ok in (
+                    ("split", self.split, "half"),
+                    ("target_factor", tf, 1),
+                    ("segment_weight", sw, 1),
+                    ("symmetrize", self.symmetrize, "none"),
+                )
+                if v != ok
+            ]
+            if bad:
+                raise ShapeTreeError(
+                    "matcher='symmetric' needs split='half', target_factor=1, "
+                    f"segment_weight=1 and symmetrize='none' (got {', '.join(bad)})"
+                )
+        if self.replace_any:
+            if occ is None:
+                raise ShapeTreeError(
+                    "replace_any=True replaces parts at the occlusion cost: set occlusion"
+                )
+            if self.split != "half":
+                raise ShapeTreeError(
+                    f"replace_any=True needs split='half' (got split={self.split!r})"
+                )
         # canonical types, so equal configurations hash and serialise alike
         fix = object.__setattr__
         fix(self, "n_points", None if n is None else int(n))
@@ -167,6 +225,7 @@ class MatchConfig:
         fix(self, "target_factor", int(tf))
         fix(self, "segment_weight", float(sw))
         fix(self, "smooth", None if not s else float(s))
+        fix(self, "replace_any", bool(self.replace_any))
 
     # ------------------------------------------------------------ construction
 
@@ -339,6 +398,23 @@ OPTIONS: dict[str, dict[str, Any]] = {
         "help": "precision of the matching tables (float32: about 2x faster, within about "
         "1e-6 relative of float64)",
     },
+    "dif": {
+        "type": str,
+        "choices": list(DIFS),
+        "help": "triangle dissimilarity: procrustes (squared full Procrustes, the paper) or "
+        "hyperbolic (pseudo-hyperbolic distance of Bookstein coordinates, footnote 2)",
+    },
+    "matcher": {
+        "type": str,
+        "choices": list(MATCHERS),
+        "help": "directed (A's shape-tree onto B, the paper) or symmetric (both curves split "
+        "at corresponding points, psi(A,B) = psi(B,A); single pairs only, slow)",
+    },
+    "replace_any": {
+        "type": bool,
+        "help": "let any part of A and of B be replaced at the occlusion cost, not only "
+        "subtrees (exact, O(n^3 m^3): single pairs only, slow; needs --occlusion)",
+    },
 }
 
 assert set(OPTIONS) == {f.name for f in dataclasses.fields(MatchConfig)}
@@ -360,6 +436,9 @@ PRESETS: dict[str, MatchConfig] = {
         target_factor=1,
         segment_weight=1.0,
         symmetrize="none",
+        dif="procrustes",
+        matcher="directed",
+        replace_any=False,
     ),
     # tuned on the set they are scored on (benchmarks/results/<set>.json); every field is
     # spelled out so a change of the general defaults never moves them
@@ -374,6 +453,9 @@ PRESETS: dict[str, MatchConfig] = {
         target_factor=1,
         segment_weight=1.0,
         symmetrize="none",
+        dif="procrustes",
+        matcher="directed",
+        replace_any=False,
     ),
     "mpeg7": MatchConfig(
         n_points=64,
@@ -386,6 +468,9 @@ PRESETS: dict[str, MatchConfig] = {
         target_factor=1,
         segment_weight=1.0,
         symmetrize="none",
+        dif="procrustes",
+        matcher="directed",
+        replace_any=False,
     ),
     "swedish_leaf": MatchConfig(
         n_points=64,
@@ -398,6 +483,9 @@ PRESETS: dict[str, MatchConfig] = {
         target_factor=2,
         segment_weight=0.0,
         symmetrize="none",
+        dif="procrustes",
+        matcher="directed",
+        replace_any=False,
     ),
 }
 # chosen leave-one-dataset-out (benchmarks/select_general.py, general_selection.json): on the
@@ -406,4 +494,13 @@ PRESETS: dict[str, MatchConfig] = {
 # with lambda ~ length (README, "Presets")
 PRESETS["general"] = MatchConfig()
 
-__all__ = ["OPTIONS", "PRECISIONS", "PRESETS", "SYMMETRIZE", "MatchConfig", "resolve_config"]
+__all__ = [
+    "DIFS",
+    "MATCHERS",
+    "OPTIONS",
+    "PRECISIONS",
+    "PRESETS",
+    "SYMMETRIZE",
+    "MatchConfig",
+    "resolve_config",
+]

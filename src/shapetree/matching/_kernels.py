@@ -42,6 +42,16 @@ plane in ``deg``; the kernel scores flagged planes with
 with the branch-free linear form. A target without such triangles (nearly all) passes
 ``deg=None``, and numba compiles a specialisation without that branch.
 
+Hyperbolic ``dif``
+-----------------
+With ``hyper`` true the kernels use the pseudo-hyperbolic ``dif``
+(:mod:`shapetree.geometry._dif`): ``λ dif = λ num / den`` with ``num`` the Lagrange form
+above and ``den`` the same form against the mirrored target triangle (``z2`` conjugated)
+plus the regularisation (:func:`~shapetree.geometry._dif.hyperbolic_den`), clipped by
+:func:`~shapetree.geometry._dif.hyperbolic_ratio`; the base cases read the
+target's hyperbolic table ``g`` and the model's hyperbolic ``flat`` constants. The target
+triangles ``tri`` are the same for both.
+
 Sentinel and fast-math
 ----------------------
 The kernels are compiled with :data:`~shapetree.geometry._dif.FASTMATH` (fast-math without
@@ -60,10 +70,13 @@ from numba import njit
 from shapetree.geometry._dif import (
     FASTMATH,
     helmert_dif,
+    helmert_dif_kind,
+    hyperbolic_den,
+    hyperbolic_ratio,
     is_zero_shape,
     lagrange_form,
     unit_helmert,
-    weighted_dif,
+    weighted_dif_kind,
 )
 
 #: Placeholder cost of a table entry that nothing can reach (no admissible split inside a
@@ -107,6 +120,7 @@ def fill_tables(
     lmin: np.ndarray,
     lmax: np.ndarray,
     tab: np.ndarray,
+    hyper: bool = False,
 ) -> None:
     """Fill the cost tables of every segment and node of one shape-tree, leaves up.
 
@@ -141,6 +155,9 @@ def fill_tables(
     tab : float64 (K + S, m, 2 m)
         Output, doubled by start (module docstring); only in-band rows are written
         (:data:`SENTINEL` where no admissible split exists and nothing replaces it).
+    hyper : bool
+        Pseudo-hyperbolic ``dif`` (module docstring); ``g`` and ``flat`` must be the
+        hyperbolic ones then.
     """
     m = g.shape[1]
     n_nodes = lam.shape[0]
@@ -201,11 +218,20 @@ def fill_tables(
                                 cd = (
                                     lrow[s]
                                     + rrow[s]
-                                    + weighted_dif(lvt, q1, qr, qi, z1[s], zr[s], zi[s])
+                                    + weighted_dif_kind(lvt, q1, qr, qi, z1[s], zr[s], zi[s], hyper)
                                 )
                                 if cd < best[s]:
                                     best[s] = cd
                             continue
+                    if hyper:
+                        lvh = lam[v]
+                        for s in range(ns):
+                            num = lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
+                            den = hyperbolic_den(q1, qr, qi, z1[s], zr[s], zi[s])
+                            c = lrow[s] + rrow[s] + lvh * hyperbolic_ratio(num, den)
+                            b = best[s]
+                            best[s] = c if c < b else b
+                        continue
                     for s in range(ns):
                         c = lrow[s] + rrow[s] + lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
                         b = best[s]
@@ -275,6 +301,7 @@ def closed_costs(
     seg_weight: float,
     tab: np.ndarray,
     out: np.ndarray,
+    hyper: bool = False,
 ) -> None:
     """ψ of many closed shape-trees against one closed target, in one call.
 
@@ -306,6 +333,7 @@ def closed_costs(
             lmin[r],
             lmax[r],
             tab,
+            hyper,
         )
         a = root1[r]
         b = root2[r]
@@ -322,6 +350,7 @@ def target_tables(
     deg: np.ndarray,
     g: np.ndarray,
     blen: np.ndarray,
+    g_hyp: np.ndarray,
 ) -> None:
     """Per-target precomputation: triangle shapes, base-case costs and subcurve lengths.
 
@@ -345,9 +374,12 @@ def target_tables(
         Output ``[L, s]``, zeroed by the caller.
     blen : (m, m)
         Output ``[L, s]``, zeroed by the caller.
+    g_hyp : (m, m)
+        Output: ``g`` with the pseudo-hyperbolic ``dif``, zeroed by the caller.
     """
     m = bx.shape[0]
     h = np.zeros((m, m))
+    hh = np.zeros((m, m))
     nseg = m if cyclic else m - 1
     seg = np.empty(nseg)
     for i in range(nseg):
@@ -396,6 +428,17 @@ def target_tables(
                 float(tri[length, kk, 1, s]),
                 float(tri[length, kk, 2, s]),
             )
+            hdif = helmert_dif_kind(
+                a1,
+                a2,
+                0.0,
+                float(tri[length, kk, 0, s]),
+                float(tri[length, kk, 1, s]),
+                float(tri[length, kk, 2, s]),
+                True,
+            )
             right = (s + kk) % m
             h[length, s] = h[kk, s] + h[length - kk, right] + length**power * dif
             g[length, s] = h[length, s] / length**power
+            hh[length, s] = hh[kk, s] + hh[length - kk, right] + length**power * hdif
+            g_hyp[length, s] = hh[length, s] / length**power

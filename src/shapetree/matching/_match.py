@@ -46,11 +46,15 @@ class MatchParams:
         sampled more densely than the model (``m = 2 n``, say), ``A``'s points may then
         land anywhere along ``B`` and only ``A``'s own triangles are compared. Not in the
         paper.
+    dif : {"procrustes", "hyperbolic"}
+        The triangle dissimilarity (``MatchConfig.dif``); models must be prepared with the
+        same (:func:`prepare_model`), targets carry the base-case tables of both.
     """
 
     occlusion: float | None = None
     band: float | None = None
     segment_weight: float = 1.0
+    dif: str = "procrustes"
 
     def __post_init__(self) -> None:
         occ = self.occlusion
@@ -63,6 +67,13 @@ class MatchParams:
             isinstance(sw, int | float) and np.isfinite(sw) and sw >= 0
         ):
             raise ShapeTreeError(f"segment_weight must be a number >= 0, got {sw!r}")
+        if self.dif not in ("procrustes", "hyperbolic"):
+            raise ShapeTreeError(f"dif must be 'procrustes' or 'hyperbolic', got {self.dif!r}")
+
+    @property
+    def hyper(self) -> bool:
+        """Whether the kernel runs the pseudo-hyperbolic ``dif``."""
+        return self.dif == "hyperbolic"
 
     @property
     def kernel_occlusion(self) -> float:
@@ -172,7 +183,7 @@ def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = Fa
         *td.kernel_arrays(dt),
         target.tri,
         target.deg,
-        target.g,
+        target.base_table(params.dif),
         target.blen,
         target.closed,
         params.kernel_occlusion,
@@ -180,6 +191,7 @@ def _fill(td: TreeData, target: Target, params: MatchParams, *, reuse: bool = Fa
         lmin,
         lmax,
         tab,
+        params.hyper,
     )
     return tab
 
@@ -232,7 +244,7 @@ class _Traceback:
     def segment(self, seg: int, s: int, length: int) -> None:
         td = self.td
         lam, alen = td.seg_lam[seg], td.seg_alen[seg]
-        cost = lam * self.p.segment_weight * self.t.g[length, s % self.m]
+        cost = lam * self.p.segment_weight * self.t.base_table(self.p.dif)[length, s % self.m]
         if self._replace_cost(lam, alen, s, length) < cost:
             self.replaced.append((seg, seg + 1, s, s + length))
             self.pos_b[s + 1 : s + length] = np.nan
@@ -273,6 +285,7 @@ class _Traceback:
                 np.ascontiguousarray(tri[:, 1]),
                 np.ascontiguousarray(tri[:, 2]),
                 lam_dif,
+                self.p.hyper,
             )
             tot = left + right + lam_dif
             if tot.size == 0:  # no admissible split: only a replacement can cover (s, L)
@@ -365,7 +378,7 @@ def match_prepared(
         admissible (see :func:`match_cost`).
     """
     params = params or MatchParams()
-    _check_pair(model, target)
+    _check_pair(model, target, params)
     costs = np.empty(len(model.trees))
     best = None
     for t, td in enumerate(model.trees):
@@ -394,7 +407,7 @@ def match_prepared(
     )
 
 
-def _check_pair(model: Model, target: Target) -> None:
+def _check_pair(model: Model, target: Target, params: MatchParams | None = None) -> None:
     if model.closed != target.closed:
         raise ShapeTreeError(
             "model and target must both be closed or both open "
@@ -405,6 +418,11 @@ def _check_pair(model: Model, target: Target) -> None:
             f"model and target were prepared with different length_power "
             f"({model.length_power} and {target.length_power})"
         )
+    if params is not None and model.dif != params.dif:
+        raise ShapeTreeError(
+            f"the model was prepared for dif={model.dif!r} but the parameters ask for "
+            f"dif={params.dif!r} (prepare_model(..., dif={params.dif!r}))"
+        )
 
 
 def match_cost(model: Model, target: Target, params: MatchParams | None = None) -> float:
@@ -414,7 +432,7 @@ def match_cost(model: Model, target: Target, params: MatchParams | None = None) 
     split, which :func:`_bands` never makes, and no occlusion to replace it).
     """
     params = params or MatchParams()
-    _check_pair(model, target)
+    _check_pair(model, target, params)
     best = np.inf
     for td in model.trees:
         tab = _fill(td, target, params, reuse=True)

@@ -45,6 +45,9 @@ class Target:
         ``blen[L, s]``: arclength of ``B[s..s+L]`` relative to the length of ``B``.
     length_power : float
         λ exponent the base-case table ``g`` was made for (see :func:`prepare_model`).
+    g_hyp : ndarray, shape (m, m)
+        ``g`` with the pseudo-hyperbolic ``dif`` (``MatchParams(dif="hyperbolic")``; the
+        kernel picks the table of its ``dif``, :meth:`base_table`).
 
     The tables are float64, or float32 with ``prepare_target(..., dtype=np.float32)``
     (the retrieval engine's precision; the kernel then runs in float32).
@@ -57,10 +60,19 @@ class Target:
     g: np.ndarray
     blen: np.ndarray
     length_power: float = 1.0
+    g_hyp: np.ndarray | None = None
 
     @property
     def n_points(self) -> int:
         return int(self.points.shape[0])
+
+    def base_table(self, dif: str) -> np.ndarray:
+        """The base-case table ``g`` of ``dif`` (``"procrustes"`` or ``"hyperbolic"``)."""
+        if dif == "procrustes":
+            return self.g
+        if dif == "hyperbolic" and self.g_hyp is not None:
+            return self.g_hyp
+        raise ShapeTreeError(f"this target has no base-case table for dif={dif!r}")
 
 
 def prepare_target(
@@ -98,6 +110,7 @@ def prepare_target(
     deg = np.zeros((m, m), dtype=np.uint8)
     g = np.zeros((m, m), dtype=dt)
     blen = np.zeros((m, m), dtype=dt)
+    g_hyp = np.zeros((m, m), dtype=dt)
     target_tables(
         np.ascontiguousarray(b[:, 0]),
         np.ascontiguousarray(b[:, 1]),
@@ -107,6 +120,7 @@ def prepare_target(
         deg,
         g,
         blen,
+        g_hyp,
     )
     return Target(
         points=b,
@@ -116,6 +130,7 @@ def prepare_target(
         g=g,
         blen=blen,
         length_power=float(length_power),
+        g_hyp=g_hyp,
     )
 
 
@@ -163,12 +178,21 @@ class TreeData:
 
 
 def tree_data(
-    tree: ShapeTree, *, weight: float, length_scale: float | None, power: float = 1.0
+    tree: ShapeTree,
+    *,
+    weight: float,
+    length_scale: float | None,
+    power: float = 1.0,
+    dif: str = "procrustes",
 ) -> TreeData:
     """Lay out the per-node constants of ``tree`` for :func:`fill_tables`.
 
-    λ of a node is ``weight * (arclength / length_scale) ** power`` (the paper: power 1).
+    λ of a node is ``weight * (arclength / length_scale) ** power`` (the paper: power 1);
+    ``dif`` (``"procrustes"`` or ``"hyperbolic"``) is the ``dif`` of the base-case
+    constants ``flat``.
     """
+    if dif not in ("procrustes", "hyperbolic"):
+        raise ShapeTreeError(f"dif must be 'procrustes' or 'hyperbolic', got {dif!r}")
     u = tree.unrolled
     seglen = np.hypot(*np.diff(u, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seglen)])
@@ -192,7 +216,7 @@ def tree_data(
     a1, a2r, a2i = z[:, 0], z[:, 1], z[:, 2]
     # cost of each node's own triangle against a straight, evenly subdivided segment
     dif_flat = np.empty(k)
-    triangle_dif_many(tri_a, even, dif_flat)
+    triangle_dif_many(tri_a, even, dif_flat, dif == "hyperbolic")
     own = lam * dif_flat
     flat = own.copy()
     for v in range(k):  # post-order: children first
@@ -238,6 +262,7 @@ class Model:
     trees: list[TreeData]
     weight: float
     length_power: float = 1.0
+    dif: str = "procrustes"
 
 
 def tree_variants(n: int, closed: bool, n_trees: int, split: str) -> list[dict]:
@@ -275,6 +300,7 @@ def prepare_model(
     weight: float = 1.0,
     length_scale: float | None = None,
     length_power: float = 1.0,
+    dif: str = "procrustes",
 ) -> Model:
     """Build the shape-tree(s) of curve ``A`` and their kernel constants.
 
@@ -295,6 +321,9 @@ def prepare_model(
         λ of a node is ``weight * (arclength(A') / length_scale) ** length_power``. The
         paper uses 1 (λ proportional to the subcurve's length); larger values weigh the
         coarse, global nodes more against the fine ones.
+    dif : {"procrustes", "hyperbolic"}
+        The ``dif`` the model's base-case constants are made for; it must equal the
+        ``MatchParams.dif`` it is matched with.
 
     Returns
     -------
@@ -311,6 +340,7 @@ def prepare_model(
             weight=weight,
             length_scale=length_scale,
             power=length_power,
+            dif=dif,
         )
         for kw in tree_variants(a.shape[0], closed, n_trees, split)
     ]
@@ -320,4 +350,5 @@ def prepare_model(
         trees=trees,
         weight=float(weight),
         length_power=float(length_power),
+        dif=dif,
     )

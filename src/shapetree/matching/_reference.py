@@ -20,6 +20,7 @@ from functools import lru_cache
 import numpy as np
 
 from shapetree.geometry import DEGENERATE_DIF
+from shapetree.geometry._dif import HYPERBOLIC_EPS
 from shapetree.tree import ShapeTree
 
 
@@ -44,6 +45,32 @@ def _dif(tri_a: np.ndarray, tri_b: np.ndarray) -> float:
     return min(max(1.0 - abs(ip) ** 2, 0.0), 1.0)
 
 
+def _hdif(tri_a: np.ndarray, tri_b: np.ndarray) -> float:
+    """Regularised pseudo-hyperbolic ``dif`` of two labelled triangles, literally.
+
+    With ``u``, ``v`` the Bookstein coordinates of the middle points (the base ``first ->
+    last`` mapped to ``-1/2 -> 1/2``): ``min(1, |u - v|^2 / (|u - conj v|^2 + eps))``
+    (:mod:`shapetree.geometry._dif`, ``eps`` = ``HYPERBOLIC_EPS``). A triangle of zero
+    size: :data:`~shapetree.geometry.DEGENERATE_DIF`; a "needle" (``first == last``, ``u``
+    at infinity): 0 against a needle, 1 against anything else.
+    """
+    us = []
+    for t in (np.asarray(tri_a, dtype=float), np.asarray(tri_b, dtype=float)):
+        if all(p[0] == t[0][0] and p[1] == t[0][1] for p in t):
+            return DEGENERATE_DIF
+        z1, z2, z3 = (complex(x, y) for x, y in t)
+        us.append(None if z3 == z1 else (z2 - 0.5 * (z1 + z3)) / (z3 - z1))
+    u, v = us
+    if u is None or v is None:
+        return 0.0 if u is None and v is None else 1.0
+    r = abs(u - v) ** 2 / (abs(u - v.conjugate()) ** 2 + HYPERBOLIC_EPS)
+    return min(r, 1.0)
+
+
+#: The literal ``dif`` of each ``dif`` option.
+DIF_FUNCTIONS = {"procrustes": _dif, "hyperbolic": _hdif}
+
+
 def _arclen(p: np.ndarray) -> float:
     return float(np.sum(np.hypot(*np.diff(p, axis=0).T)))
 
@@ -55,6 +82,7 @@ def _identity_cost(
     scale: float,
     mids: dict[tuple[int, int], int],
     power: float = 1.0,
+    dif_fn=_dif,
 ) -> float:
     """Cost of deforming ``p`` onto ``q`` point for point (same length), over a tree of ``p``.
 
@@ -69,7 +97,7 @@ def _identity_cost(
             continue
         i = mids[(s, e)]
         lam = weight * (_arclen(p[s : e + 1]) / scale) ** power
-        total += lam * _dif(p[[s, i, e]], q[[s, i, e]])
+        total += lam * dif_fn(p[[s, i, e]], q[[s, i, e]])
         stack += [(s, i), (i, e)]
     return total
 
@@ -105,6 +133,8 @@ class ReferenceMatcher:
         with lengths relative to the total lengths of ``A`` and ``B``.
     length_scale : float or None
         Default: the length of ``A`` (perimeter for closed curves).
+    dif : {"procrustes", "hyperbolic"}
+        Which literal ``dif`` (:data:`DIF_FUNCTIONS`).
     """
 
     def __init__(
@@ -118,8 +148,10 @@ class ReferenceMatcher:
         length_scale: float | None = None,
         power: float = 1.0,
         segment_weight: float = 1.0,
+        dif: str = "procrustes",
     ) -> None:
         self.tree = tree
+        self.dif = DIF_FUNCTIONS[dif]
         self.segment_weight = segment_weight
         self.u = tree.unrolled
         self.b = np.asarray(b, dtype=float)
@@ -160,7 +192,7 @@ class ReferenceMatcher:
             t = np.linspace(0.0, 1.0, length + 1)[:, None]
             seg = a[0] + t * (a[1] - a[0])
             return self.segment_weight * _identity_cost(
-                seg, bsub, self.weight, self.la, _half_mids(length + 1), self.power
+                seg, bsub, self.weight, self.la, _half_mids(length + 1), self.power, self.dif
             )
         # subdivide B's segment to as many points as A' and match point for point
         k = ea - sa + 1
@@ -169,14 +201,14 @@ class ReferenceMatcher:
         mids = {
             (s0 - sa, e0 - sa): i - sa for (s0, e0), i in self.mids.items() if sa <= s0 and e0 <= ea
         }
-        return _identity_cost(a, seg, self.weight, self.la, mids, self.power)
+        return _identity_cost(a, seg, self.weight, self.la, mids, self.power, self.dif)
 
     def split_cost(self, sa: int, ea: int, s: int, length: int, j: int) -> float:
         """λ dif of the node ``(sa, mid, ea)`` against the target triangle ``(b_s, b_{s+j},
         b_{s+length})`` (the term eq. (1) adds for split ``j``)."""
         i = self.mids[(sa, ea)]
         lam = self.weight * (_arclen(self.u[sa : ea + 1]) / self.la) ** self.power
-        return lam * _dif(self.u[[sa, i, ea]], self.b_sub(s, length)[[0, j, length]])
+        return lam * self.dif(self.u[[sa, i, ea]], self.b_sub(s, length)[[0, j, length]])
 
     def _psi(self, sa: int, ea: int, s: int, length: int) -> float:
         """ψ(U[sa..ea], B[s..s+length])."""
@@ -208,6 +240,7 @@ def reference_match_cost(
     occlusion: float | None = None,
     power: float = 1.0,
     segment_weight: float = 1.0,
+    dif: str = "procrustes",
 ) -> float:
     """ψ(A, B) by the literal recursion: open A vs open B, or closed A vs closed B.
 
@@ -217,6 +250,7 @@ def reference_match_cost(
         Shape-tree of ``A``; ``tree.closed`` decides the mode (``B`` is taken to be of the
         same kind).
     b : ndarray, shape (m, 2)
+    dif : {"procrustes", "hyperbolic"}
 
     Returns
     -------
@@ -230,6 +264,7 @@ def reference_match_cost(
         occlusion=occlusion,
         power=power,
         segment_weight=segment_weight,
+        dif=dif,
     )
     m = rm.m
     if not tree.closed:
@@ -349,6 +384,7 @@ def reference_score(
     occlusion: float | None = None,
     power: float = 1.0,
     segment_weight: float = 1.0,
+    dif: str = "procrustes",
 ) -> float:
     """The cost of one given correspondence, scored literally (the oracle of a traceback).
 
@@ -370,7 +406,7 @@ def reference_score(
         only where no node endpoint needs them).
     replaced : list of (a_start, a_end, b_start, b_end)
         As ``MatchResult.replaced`` (indices modulo ``n``, ``m`` for closed curves).
-    weight, occlusion, power, segment_weight
+    weight, occlusion, power, segment_weight, dif
         As for :func:`reference_match_cost`.
 
     Returns
@@ -385,6 +421,7 @@ def reference_score(
         occlusion=occlusion,
         power=power,
         segment_weight=segment_weight,
+        dif=dif,
     )
     m, n = rm.m, tree.n_points
     pos = np.asarray(a_to_b, dtype=float)
