@@ -152,3 +152,29 @@ def test_distances_bad_csv_path_writes_nothing(capsys, folder: Path, tmp_path: P
     code, out, err = run(capsys, *args, "--no-progress", "--no-cache")
     assert code == 2 and "is a directory" in err
     assert not (tmp_path / "D.npz").exists()
+
+
+def test_distances_neighbours_equal_the_full_matrix(capsys, folder: Path, tmp_path: Path):
+    """``--neighbours K``: each row's K nearest of the full matrix, the same numbers."""
+    args = ["distances", folder, "--n-points", "24", "--n-trees", "1", "--no-progress"]
+    args += ["--no-cache"]
+    code, _, err = run(capsys, *args, "-o", tmp_path / "D.npz")
+    assert code == 0, err
+    d = np.load(tmp_path / "D.npz")["D"]
+    out = tmp_path / "NN.npz"
+    code, text, err = run(
+        capsys, *args, "-o", out, "--neighbours", "3", "--csv", tmp_path / "n.csv"
+    )
+    assert code == 0, err
+    assert "nearest each" in text + err and "skipped by the lower bound" in text + err
+    z = np.load(out)
+    order = np.argsort(d, axis=1, kind="stable")[:, :3]
+    np.testing.assert_array_equal(z["indices"], order)
+    np.testing.assert_array_equal(z["distances"], np.take_along_axis(d, order, axis=1))
+    meta = json.loads(str(z["config"]))
+    assert meta["neighbours"]["k"] == 3 and 0 <= meta["neighbours"]["skipped"] < 1
+    lines = (tmp_path / "n.csv").read_text().splitlines()
+    assert lines[0] == "shape,rank,neighbour,distance" and len(lines) == 1 + 3 * d.shape[0]
+    bad = [*args, "--n-points", "none", "--phases", "1", "-o", out, "--neighbours", "2"]
+    code, _, err = run(capsys, *bad)
+    assert code != 0 and "--n-points" in err and "Traceback" not in err

@@ -105,3 +105,70 @@ def test_knn_refuses_bad_arguments(kimia):
         knn([kimia[0]], [], n_points=12)
     with pytest.raises(ShapeTreeError, match="n_points"):
         knn([kimia[0]], db, n_points=None, phases=1, target_factor=1)
+
+
+def test_knn_blocks_and_cache_resume(kimia, tmp_path):
+    """Blocks of queries give the same answer as one block; a second run reads every block
+    from the cache; a damaged block is recomputed."""
+    queries, db = kimia[:9], kimia[:30]
+    ref_idx, ref_dist = knn(queries, db, "kimia99", n_points=14, k=5, workers=1, block=9)
+    stats: dict = {}
+    idx, dist = knn(
+        queries, db, "kimia99", n_points=14, k=5, block=2, cache_dir=tmp_path, stats=stats
+    )
+    np.testing.assert_array_equal(idx, ref_idx)
+    np.testing.assert_array_equal(dist, ref_dist)
+    assert stats["blocks"] == 5 and stats["blocks_cached"] == 0
+    full = stats["full"]
+    again: dict = {}
+    idx2, dist2 = knn(
+        queries, db, "kimia99", n_points=14, k=5, block=2, cache_dir=tmp_path, stats=again
+    )
+    np.testing.assert_array_equal(idx2, ref_idx)
+    np.testing.assert_array_equal(dist2, ref_dist)
+    assert again["blocks_cached"] == 5 and again["full"] == full
+    blocks = sorted(tmp_path.glob("knn-*/*.blk"))
+    assert len(blocks) == 5
+    blocks[1].write_bytes(blocks[1].read_bytes()[:-8] + b"\x01" * 8)
+    with pytest.warns(UserWarning, match="damaged"):
+        idx3, _ = knn(queries, db, "kimia99", n_points=14, k=5, block=2, cache_dir=tmp_path)
+    np.testing.assert_array_equal(idx3, ref_idx)
+    # another k is another cache entry, never a mix
+    idx4, _ = knn(queries, db, "kimia99", n_points=14, k=3, block=2, cache_dir=tmp_path)
+    np.testing.assert_array_equal(idx4, ref_idx[:, :3])
+    assert len(list(tmp_path.glob("knn-*"))) == 2
+
+
+@pytest.mark.parametrize(
+    ("name", "params"),
+    [
+        ("kimia99", {"n_points": 14}),
+        ("mpeg7", {"n_points": 14, "per_class": 8, "k": 8}),
+        ("swedish_leaf", {"n_points": 14, "per_class": 28, "n_splits": 4}),
+    ],
+)
+def test_evaluate_with_neighbours_equals_exhaustive(name, params):
+    """The protocol's score from each shape's K nearest (pruned search) is the exhaustive
+    one; for Swedish leaf a small K forces some rows to be completed in full."""
+    from shapetree.datasets import load
+    from shapetree.retrieval import evaluate
+
+    classes = sorted(set(load(name, n_points=None, progress=False).labels))
+    params = dict(params, classes=",".join(classes[:3] if name == "kimia99" else classes[:4]))
+    kw = dict(progress=False, verbose=False, workers=2, **params)
+    full = evaluate(name, name, **kw)
+    need = {"kimia99": 11, "mpeg7": params.get("k", 40) + 1, "swedish_leaf": 2}[name]
+    pruned = evaluate(name, name, neighbours=need, **kw)
+    for key in ("ranks", "bullseye", "bullseye_per_class", "accuracy_splits"):
+        if key in full:
+            assert pruned[key] == full[key], key
+    nb = pruned["neighbours"]
+    assert nb["k"] == need and 0 <= nb["skipped"] < 1
+    assert pruned["pairs_computed"] == nb["full_matchings"] <= full["pairs_computed"]
+    if name == "swedish_leaf":
+        assert nb["rows_completed"] > 0  # K=2: some test shapes had no training neighbour
+    if name != "swedish_leaf":  # (any K >= 1 serves Swedish leaf)
+        with pytest.raises(ShapeTreeError, match=f"needs each shape's {need} nearest"):
+            evaluate(name, name, neighbours=need - 1, **kw)
+    with pytest.raises(ShapeTreeError, match="rerank"):
+        evaluate(name, name, neighbours=need, rerank="tpg", **kw)

@@ -27,9 +27,12 @@ target preparation for all the queries that need it).
 
 from __future__ import annotations
 
+import os
+import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -40,8 +43,16 @@ from shapetree.matching import MatchConfig, prepare_target
 from shapetree.matching._api import kernel_params, model_passes
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._bound import BoundStack
-from shapetree.matching._config import resolve_config
-from shapetree.retrieval._engine import _prep_models, _prep_targets
+from shapetree.retrieval._engine import (
+    _block_path,
+    _cache_key,
+    _prep_models,
+    _prep_targets,
+    _resolve,
+    _source,
+    read_block,
+    write_block,
+)
 
 __all__ = ["knn", "lower_bounds"]
 
@@ -99,29 +110,35 @@ class _Direction:
         self.n_pass = cfg.n_pass
         self.keep_from, self.keep_top = keep_from, keep_top
         self._bound_stacks: dict[tuple[int, ...], BoundStack] = {}
+        self._lock = threading.Lock()
 
     def _flat(self, rows: Sequence[int]) -> list:
         # pass-major, as the engine stacks them: [plain rows..., mirrored rows...]
         return [self.models[i][p] for p in range(self.n_pass) for i in rows]
 
     def bound_stack(self, rows: Sequence[int]) -> BoundStack:
-        """The bound's stack of ``rows`` (built once per set of rows)."""
+        """A new bound stack of the models ``rows`` (one per block of queries)."""
+        return BoundStack(
+            self._flat(rows),
+            self.m,
+            self.params,
+            self.cfg.dtype,
+            keep_from=self.keep_from,
+            keep_top=self.keep_top,
+        )
+
+    def shared_stack(self, rows: Sequence[int]) -> BoundStack:
+        """The bound stack of ``rows``, built once and shared by every block (the
+        database's models when the database is deformed onto the queries)."""
         key = tuple(rows)
-        stack = self._bound_stacks.get(key)
-        if stack is None:
-            stack = self._bound_stacks[key] = BoundStack(
-                self._flat(rows),
-                self.m,
-                self.params,
-                self.cfg.dtype,
-                keep_from=self.keep_from,
-                keep_top=self.keep_top,
-            )
+        with self._lock:
+            stack = self._bound_stacks.get(key)
+            if stack is None:
+                stack = self._bound_stacks[key] = self.bound_stack(rows)
         return stack
 
-    def bounds_for_target(self, j: int, rows: Sequence[int]) -> np.ndarray:
-        """Lower bounds of ``cost(rows, j)``."""
-        stack = self.bound_stack(rows)
+    def bounds_for_target(self, j: int, rows: Sequence[int], stack: BoundStack) -> np.ndarray:
+        """Lower bounds of ``cost(rows, j)`` (``stack``: the bound stack of ``rows``)."""
         best = np.full(len(rows), np.inf)
         for b in self.targets[j]:
             c = stack.bounds(_target(b, self.cfg)).reshape(self.n_pass, len(rows)).min(axis=0)
@@ -166,7 +183,11 @@ def _combine(fwd: np.ndarray | None, bwd: np.ndarray | None, sym: str) -> np.nda
 
 
 class _Pairs:
-    """Bounds and full costs of query x database pairs under one configuration."""
+    """Bounds and full costs of query x database pairs under one configuration.
+
+    The curves are prepared once; :meth:`bounds` and :meth:`costs` work on any subset of
+    the queries (a block of rows), so blocks can run in threads and be cached apart.
+    """
 
     def __init__(
         self,
@@ -175,69 +196,80 @@ class _Pairs:
         cfg: MatchConfig,
         keep_from: int | None,
         keep_top: int,
-        workers: int,
     ) -> None:
-        self.cfg, self.workers = cfg, workers
+        self.cfg = cfg
         self.sym = cfg.symmetrize
         self.nq, self.nd = len(queries), len(database)
         self.fwd = self.bwd = None
+        self._curves: list[tuple[list[np.ndarray], list[list[np.ndarray]]]] = []
         if self.sym != "reverse":
-            qm = _models(_prep_models(queries, cfg, "query"), cfg)
+            qc = _prep_models(queries, cfg, "query")
             dt = _prep_targets(database, cfg, "database curve")
-            self.fwd = _Direction(qm, dt, cfg, keep_from, keep_top)
+            self.fwd = _Direction(_models(qc, cfg), dt, cfg, keep_from, keep_top)
+            self._curves.append((qc, dt))
         if self.sym != "none":
-            dm = _models(_prep_models(database, cfg, "database curve"), cfg)
+            dc = _prep_models(database, cfg, "database curve")
             qt = _prep_targets(queries, cfg, "query")
-            self.bwd = _Direction(dm, qt, cfg, keep_from, keep_top)
+            self.bwd = _Direction(_models(dc, cfg), qt, cfg, keep_from, keep_top)
+            self._curves.append((dc, qt))
 
-    def bounds(self) -> np.ndarray:
-        """``B[q, x] <= D[q, x]`` for every pair, shape (n_queries, n_database)."""
+    def key(self, spec: str) -> str:
+        """Cache key: the engine's key of each direction's sampled curves and ``spec``."""
+        import hashlib
+
+        h = hashlib.sha256(spec.encode())
+        for models, targets in self._curves:
+            h.update(_cache_key(models, targets, self.cfg).encode())
+        return h.hexdigest()
+
+    def bounds(self, rows: Sequence[int], workers: int = 1) -> np.ndarray:
+        """``B[q, x] <= D[q, x]`` for the queries ``rows``, shape (len(rows), n_database)."""
+        rows = list(rows)
         fwd = bwd = None
         if self.fwd is not None:
-            fwd = np.empty((self.nq, self.nd))
-            rows = list(range(self.nq))
-            self.fwd.bound_stack(rows)  # built once, before the threads share it
+            fwd = np.empty((len(rows), self.nd))
+            stack = self.fwd.bound_stack(rows)
 
             def fjob(js: list[int]) -> Callable[[], None]:
                 def run() -> None:
                     for j in js:
-                        fwd[:, j] = self.fwd.bounds_for_target(j, rows)
+                        fwd[:, j] = self.fwd.bounds_for_target(j, rows, stack)
 
                 return run
 
-            _run([fjob(js) for js in _chunks(range(self.nd), self.workers)], self.workers)
+            _run([fjob(js) for js in _chunks(range(self.nd), workers)], workers)
         if self.bwd is not None:
-            bwd = np.empty((self.nq, self.nd))
-            rows = list(range(self.nd))
-            self.bwd.bound_stack(rows)
+            bwd = np.empty((len(rows), self.nd))
+            every = list(range(self.nd))
+            stack = self.bwd.shared_stack(every)
 
             def bjob(qs: list[int]) -> Callable[[], None]:
                 def run() -> None:
-                    for q in qs:
-                        bwd[q] = self.bwd.bounds_for_target(q, rows)
+                    for i in qs:
+                        bwd[i] = self.bwd.bounds_for_target(rows[i], every, stack)
 
                 return run
 
-            _run([bjob(qs) for qs in _chunks(range(self.nq), self.workers)], self.workers)
+            _run([bjob(qs) for qs in _chunks(range(len(rows)), workers)], workers)
         return np.maximum(_combine(fwd, bwd, self.sym), 0.0)
 
-    def costs(self, pairs: list[tuple[int, int]]) -> np.ndarray:
+    def costs(self, pairs: list[tuple[int, int]], workers: int = 1) -> np.ndarray:
         """Full distances of ``(q, x)`` pairs, equal to ``search``'s (``>= 0``)."""
         fwd = bwd = None
         if self.fwd is not None:
-            fwd = self._direction_costs(self.fwd, [(x, q) for q, x in pairs], pairs)
+            fwd = self._direction_costs(self.fwd, [(x, q) for q, x in pairs], workers)
         if self.bwd is not None:
-            bwd = self._direction_costs(self.bwd, [(q, x) for q, x in pairs], pairs)
+            bwd = self._direction_costs(self.bwd, [(q, x) for q, x in pairs], workers)
         return np.maximum(_combine(fwd, bwd, self.sym), 0.0)
 
     def _direction_costs(
-        self, d: _Direction, by_target: list[tuple[int, int]], pairs: list
+        self, d: _Direction, by_target: list[tuple[int, int]], workers: int
     ) -> np.ndarray:
         # group the pairs by the curve that is the target (one preparation for its group)
         groups: dict[int, list[int]] = {}
         for i, (j, _row) in enumerate(by_target):
             groups.setdefault(j, []).append(i)
-        out = np.empty(len(pairs))
+        out = np.empty(len(by_target))
         keys = sorted(groups)
 
         def job(js: list[int]) -> Callable[[], None]:
@@ -249,7 +281,7 @@ class _Pairs:
 
             return run
 
-        _run([job(js) for js in _chunks(keys, self.workers)], self.workers)
+        _run([job(js) for js in _chunks(keys, workers)], workers)
         return out
 
 
@@ -290,84 +322,25 @@ def lower_bounds(
     ndarray, shape (len(queries), len(database))
         ``B[q, x] <= distance_matrix(queries, database, config)[q, x]``.
     """
-    cfg = resolve_config(config, **options)
+    queries, database = _source(queries), _source(database)
+    cfg = _resolve(config, options, queries, database)
     workers = _check_int("workers", workers, 1)
     if len(queries) == 0 or len(database) == 0:
         raise ShapeTreeError("lower_bounds needs at least one query and one database curve")
-    return _Pairs(queries, database, cfg, *_keep(cfg, keep_from, keep_top), workers).bounds()
+    pairs = _Pairs(queries, database, cfg, *_keep(cfg, keep_from, keep_top))
+    return pairs.bounds(range(len(queries)), workers)
 
 
-def knn(
-    queries: Sequence[ArrayLike],
-    database: Sequence[ArrayLike],
-    config: MatchConfig | str | None = None,
-    *,
-    k: int = 10,
-    workers: int = 2,
-    progress: bool = False,
-    stats: dict | None = None,
-    keep_from: int | None | str = "auto",
-    keep_top: int | str = "auto",
-    batch: int | None = None,
-    **options: Any,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The ``k`` nearest database shapes of every query, exactly as exhaustive search.
-
-    Parameters
-    ----------
-    queries : sequence of array_like
-        Closed curves (arrays, OpenCV contours or shapely polygons).
-    database : sequence of array_like
-        Closed curves.
-    config : MatchConfig, str or None
-        Matcher configuration or preset name (default: the ``general`` preset); it needs
-        ``n_points`` (every curve resampled to one size). Every ``symmetrize`` is
-        supported (``"none"``: ``D[q, x] = ψ(q onto x)``; the others bound both
-        directions).
-    k : int
-        Neighbours per query (at most the database size).
-    workers : int
-        Threads (the kernels release the GIL).
-    progress : bool
-        Print one line per round (candidates computed, queries still open).
-    stats : dict, optional
-        Filled with ``pairs``, ``full`` (full matchings computed), ``skipped`` (their
-        complement, as a fraction), ``rounds``, ``bound_seconds``, ``full_seconds``,
-        ``seconds`` and, per query, ``full_per_query``.
-    keep_from, keep_top : int, None or "auto"
-        Which levels of the shape-tree the bound matches exactly (:func:`lower_bounds`);
-        ``"auto"``: under a band all but the roots, without one the four top levels
-        (:data:`AUTO_KEEP`).
-    batch : int, optional
-        The first round computes each query's ``k`` candidates of smallest bound; by
-        default the second computes every candidate whose bound is ``<= τ`` (two rounds,
-        each database shape prepared as a target at most twice). With ``batch``, later
-        rounds take at least ``batch`` and as many as the query has computed (closer to
-        strict best-first order, more rounds).
-    **options
-        :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
-
-    Returns
-    -------
-    indices : ndarray of int, shape (len(queries), k)
-        Database indices, nearest first, ties by index: row ``q`` equals
-        ``search(queries[q], database, config, k=k)[0]``.
-    distances : ndarray, shape (len(queries), k)
-        Their distances (``search``'s numbers, ``match(...).cost``).
-    """
-    t_start = time.perf_counter()
-    cfg = resolve_config(config, **options)
-    workers = _check_int("workers", workers, 1)
-    k = _check_int("k", k, 1)
-    keep_from, keep_top = _keep(cfg, keep_from, keep_top)
-    nq, nd = len(queries), len(database)
-    if nq == 0 or nd == 0:
-        raise ShapeTreeError(f"knn needs at least one query and one database curve, got {nq}, {nd}")
-    k = min(k, nd)
-    step = nd if batch is None else _check_int("batch", batch, 1)
-    pairs = _Pairs(queries, database, cfg, keep_from, keep_top, workers)
-    bound = pairs.bounds()
-    t_bound = time.perf_counter() - t_start
+def _knn_rows(
+    pairs: _Pairs, rows: list[int], k: int, step: int, workers: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, float]]:
+    """The exact ``k`` nearest of the queries ``rows``: bounds, then best-first rounds of
+    full matchings (module docstring). Returns indices, distances, the full matchings per
+    query and the timings."""
+    t0 = time.perf_counter()
+    nq, nd = len(rows), pairs.nd
+    bound = pairs.bounds(rows, workers)
+    t_bound = time.perf_counter() - t0
     order = np.argsort(bound, axis=1, kind="stable")
     dist = np.full((nq, nd), np.inf)
     done = np.zeros((nq, nd), dtype=bool)
@@ -398,18 +371,13 @@ def knn(
         if not todo:
             break
         rounds += 1
-        t0 = time.perf_counter()
-        c = pairs.costs(todo)
-        t_full += time.perf_counter() - t0
+        t1 = time.perf_counter()
+        c = pairs.costs([(rows[q], x) for q, x in todo], workers)
+        t_full += time.perf_counter() - t1
         for (q, x), v in zip(todo, c):
             dist[q, x] = v
             done[q, x] = True
             count[q] += 1
-        if progress:
-            print(
-                f"knn round {rounds}: {len(todo)} full matchings, {int(open_q.sum())} queries open",
-                flush=True,
-            )
     idx = np.empty((nq, k), dtype=np.int64)
     out = np.empty((nq, k))
     cols = np.arange(nd)
@@ -419,16 +387,155 @@ def knn(
         rank = comp[np.lexsort((comp, dist[q, comp]))][:k]
         idx[q] = rank
         out[q] = dist[q, rank]
+    timing = {"bound_seconds": t_bound, "full_seconds": t_full, "rounds": rounds}
+    return idx, out, done.sum(axis=1), timing
+
+
+def knn(
+    queries: Sequence[ArrayLike],
+    database: Sequence[ArrayLike],
+    config: MatchConfig | str | None = None,
+    *,
+    k: int = 10,
+    workers: int = 2,
+    progress: bool = False,
+    stats: dict | None = None,
+    keep_from: int | None | str = "auto",
+    keep_top: int | str = "auto",
+    batch: int | None = None,
+    cache_dir: str | os.PathLike[str] | None = None,
+    block: int | None = None,
+    **options: Any,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest database shapes of every query, exactly as exhaustive search.
+
+    Parameters
+    ----------
+    queries : sequence of array_like, ShapeIndex or path-like
+        Closed curves (arrays, OpenCV contours or shapely polygons), or a prepared
+        database (:class:`~shapetree.retrieval.ShapeIndex` or its file name).
+    database : sequence of array_like, ShapeIndex or path-like
+        Closed curves, or a prepared database.
+    config : MatchConfig, str or None
+        Matcher configuration or preset name (default: the ``general`` preset, or the
+        configuration of a ``ShapeIndex`` given); it needs ``n_points`` (every curve
+        resampled to one size). Every ``symmetrize`` is supported (``"none"``: ``D[q, x]
+        = ψ(q onto x)``; the others bound both directions).
+    k : int
+        Neighbours per query (at most the database size).
+    workers : int
+        Threads (the kernels release the GIL): blocks of queries run side by side.
+    progress : bool
+        tqdm progress bar over the queries, with ETA.
+    stats : dict, optional
+        Filled with ``pairs``, ``full`` (full matchings computed), ``skipped`` (their
+        complement, as a fraction), ``rounds`` (the most of any block), ``bound_seconds``
+        and ``full_seconds`` (summed over blocks), ``seconds`` (wall), ``blocks``,
+        ``blocks_cached`` and, per query, ``full_per_query``.
+    keep_from, keep_top : int, None or "auto"
+        Which levels of the shape-tree the bound matches exactly (:func:`lower_bounds`);
+        ``"auto"``: under a band all but the roots, without one the four top levels
+        (:data:`AUTO_KEEP`). They change the speed, never the result.
+    batch : int, optional
+        The first round computes each query's ``k`` candidates of smallest bound; by
+        default the second computes every candidate whose bound is ``<= τ`` (two rounds,
+        each database shape prepared as a target at most twice per block). With
+        ``batch``, later rounds take at least ``batch`` and as many as the query has
+        computed (closer to strict best-first order, more rounds).
+    cache_dir : path-like, optional
+        Folder for finished blocks of queries (checksummed, written atomically, in a
+        sub-folder named by a SHA-256 of the code, the configuration, ``k`` and the
+        sampled curves): a killed run resumes where it stopped.
+    block : int, optional
+        Queries per block (the unit of work, caching and resumption); default
+        ``ceil(n_queries / workers)``, at most 32.
+    **options
+        :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
+
+    Returns
+    -------
+    indices : ndarray of int, shape (len(queries), k)
+        Database indices, nearest first, ties by index: row ``q`` equals
+        ``search(queries[q], database, config, k=k)[0]``.
+    distances : ndarray, shape (len(queries), k)
+        Their distances (``search``'s numbers, ``match(...).cost``).
+    """
+    t_start = time.perf_counter()
+    queries, database = _source(queries), _source(database)
+    cfg = _resolve(config, options, queries, database)
+    workers = _check_int("workers", workers, 1)
+    k = _check_int("k", k, 1)
+    keep_from, keep_top = _keep(cfg, keep_from, keep_top)
+    nq, nd = len(queries), len(database)
+    if nq == 0 or nd == 0:
+        raise ShapeTreeError(f"knn needs at least one query and one database curve, got {nq}, {nd}")
+    k = min(k, nd)
+    step = nd if batch is None else _check_int("batch", batch, 1)
+    block = max(1, min(32, -(-nq // workers))) if block is None else _check_int("block", block, 1)
+    pairs = _Pairs(queries, database, cfg, keep_from, keep_top)
+    ranges = [(r0, min(nq, r0 + block)) for r0 in range(0, nq, block)]
+    idx = np.empty((nq, k), dtype=np.int64)
+    dist = np.empty((nq, k))
+    full = np.zeros(nq, dtype=np.int64)
+    timing = {"bound_seconds": 0.0, "full_seconds": 0.0, "rounds": 0}
+    folder = key = None
+    if cache_dir is not None:
+        key = pairs.key(f"shapetree-knn k={k}")
+        folder = Path(cache_dir) / f"knn-{key[:32]}"
+        folder.mkdir(parents=True, exist_ok=True)
+
+    def meta(r0: int, r1: int) -> dict:
+        return {"key": key, "rows": [r0, r1], "shape": [3, r1 - r0, k]}
+
+    def store(r0: int, r1: int, arr: np.ndarray) -> None:
+        dist[r0:r1], idx[r0:r1], full[r0:r1] = arr[0], arr[1].astype(np.int64), arr[2, :, 0]
+
+    todo = []
+    for r0, r1 in ranges:
+        arr = read_block(_block_path(folder, r0, r1), meta(r0, r1)) if folder else None
+        if arr is None:
+            todo.append((r0, r1))
+        else:
+            store(r0, r1, arr)
+    bar = None
+    if progress and todo:
+        from tqdm.auto import tqdm
+
+        done_rows = nq - sum(r1 - r0 for r0, r1 in todo)
+        bar = tqdm(total=nq, initial=done_rows, desc="nearest neighbours", unit="query")
+    lock = threading.Lock()
+    inner = workers if len(todo) <= 1 else 1
+
+    def job(r0: int, r1: int) -> None:
+        bi, bd, bf, bt = _knn_rows(pairs, list(range(r0, r1)), k, step, inner)
+        # one array per block: distances, indices (exact in float64), full matchings
+        arr = np.zeros((3, r1 - r0, k))
+        arr[0], arr[1], arr[2, :, 0] = bd, bi, bf
+        if folder is not None:
+            write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
+        with lock:
+            store(r0, r1, arr)
+            timing["bound_seconds"] += bt["bound_seconds"]
+            timing["full_seconds"] += bt["full_seconds"]
+            timing["rounds"] = max(timing["rounds"], bt["rounds"])
+            if bar is not None:
+                bar.update(r1 - r0)
+
+    try:
+        _run([lambda r=r: job(*r) for r in todo], 1 if inner > 1 else workers)
+    finally:
+        if bar is not None:
+            bar.close()
     if stats is not None:
-        n_full = int(done.sum())
+        n_full = int(full.sum())
         stats.update(
             pairs=nq * nd,
             full=n_full,
             skipped=1.0 - n_full / (nq * nd),
-            rounds=rounds,
-            bound_seconds=t_bound,
-            full_seconds=t_full,
             seconds=time.perf_counter() - t_start,
-            full_per_query=done.sum(axis=1).tolist(),
+            full_per_query=full.tolist(),
+            blocks=len(ranges),
+            blocks_cached=len(ranges) - len(todo),
+            **timing,
         )
-    return idx, out
+    return idx, dist

@@ -154,6 +154,35 @@ def kimia_ranks(D: ArrayLike, labels: ArrayLike, n_ranks: int = 10) -> np.ndarra
     return (lab[order] == lab[:, None]).sum(axis=0).astype(int)
 
 
+def split_masks(labels: ArrayLike, n_train: int, n_splits: int, seed: int) -> list[np.ndarray]:
+    """The training sets of the Swedish-leaf splits (:func:`nn_accuracy_splits`).
+
+    Parameters
+    ----------
+    labels : array_like, shape (n,)
+    n_train, n_splits, seed : int
+
+    Returns
+    -------
+    list of ndarray of bool, each shape (n,)
+        ``True`` for the training items of each split, ``n_train`` per class, drawn by
+        ``numpy.random.default_rng(seed)``.
+    """
+    lab = np.asarray(labels)
+    rng = np.random.default_rng(seed)
+    classes = sorted(set(lab.tolist()))
+    out = []
+    for _ in range(n_splits):
+        train = np.zeros(lab.shape[0], dtype=bool)
+        for c in classes:
+            idx = np.flatnonzero(lab == c)
+            if idx.size <= n_train:
+                raise ShapeTreeError(f"class {c!r} has {idx.size} items, needs > {n_train}")
+            train[rng.choice(idx, n_train, replace=False)] = True
+        out.append(train)
+    return out
+
+
 def nn_accuracy_splits(
     D: ArrayLike,
     labels: ArrayLike,
@@ -188,16 +217,8 @@ def nn_accuracy_splits(
         Only with ``return_splits``.
     """
     d, lab = _check(D, labels)
-    rng = np.random.default_rng(seed)
-    classes = sorted(set(lab.tolist()))
     accs = np.empty(n_splits)
-    for s in range(n_splits):
-        train = np.zeros(lab.shape[0], dtype=bool)
-        for c in classes:
-            idx = np.flatnonzero(lab == c)
-            if idx.size <= n_train:
-                raise ShapeTreeError(f"class {c!r} has {idx.size} items, needs > {n_train}")
-            train[rng.choice(idx, n_train, replace=False)] = True
+    for s, train in enumerate(split_masks(lab, n_train, n_splits, seed)):
         tr, te = np.flatnonzero(train), np.flatnonzero(~train)
         nn = tr[np.argmin(d[np.ix_(te, tr)], axis=1)]
         accs[s] = 100.0 * np.mean(lab[nn] == lab[te])
