@@ -178,3 +178,30 @@ def test_distances_neighbours_equal_the_full_matrix(capsys, folder: Path, tmp_pa
     bad = [*args, "--n-points", "none", "--phases", "1", "-o", out, "--neighbours", "2"]
     code, _, err = run(capsys, *bad)
     assert code != 0 and "--n-points" in err and "Traceback" not in err
+
+
+def test_distances_on_a_local_dask_cluster_equal_the_threads(capsys, folder, tmp_path):
+    """``--dask local:2``: two worker processes, bitwise the threaded matrix; a cache
+    written by the cluster run is read back by a threaded run."""
+    pytest.importorskip("distributed")
+    args = ["distances", folder, "--n-points", "16", "--n-trees", "1", "--no-progress"]
+    code, _, err = run(capsys, *args, "--no-cache", "-o", tmp_path / "T.npz")
+    assert code == 0, err
+    cache = tmp_path / "cache"
+    code, _, err = run(
+        capsys, *args, "--cache", cache, "--dask", "local:2", "-o", tmp_path / "K.npz"
+    )
+    assert code == 0, err
+    d = np.load(tmp_path / "T.npz")["D"]
+    assert np.array_equal(np.load(tmp_path / "K.npz")["D"], d)
+    assert list(cache.rglob("*.blk"))
+    code, _, err = run(capsys, *args, "--cache", cache, "-o", tmp_path / "R.npz")
+    assert code == 0, err
+    assert np.array_equal(np.load(tmp_path / "R.npz")["D"], d)
+    code, _, err = run(capsys, *args, "--dask", "local:zero", "-o", tmp_path / "X.npz")
+    assert code != 0 and "local:N" in err and "Traceback" not in err
+    assert not (tmp_path / "X.npz").exists()
+    code, _, err = run(
+        capsys, *args, "--dask", "local:2", "--neighbours", "2", "-o", tmp_path / "X.npz"
+    )
+    assert code != 0 and "choose one" in err

@@ -45,6 +45,8 @@ examples:
   shapetree distances shapes/ -o D.npz --preset paper --n-points 64
   shapetree distances shapes.stidx -o D.npz          # a database (shapetree index build)
   shapetree distances shapes/ -o NN.npz --neighbours 10  # each shape's 10 nearest, exactly
+  shapetree distances shapes/ -o D.npz --dask local:4     # 4 worker processes (Dask)
+  shapetree distances shapes/ -o D.npz --dask tcp://10.0.0.5:8786  # a running cluster
 
 The .npz holds D (n x n, row = query), names (n file names) and config (JSON text):
   z = numpy.load("D.npz"); D, names = z["D"], z["names"]
@@ -208,6 +210,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="only each shape's K nearest, exactly, by the pruned search (a lower bound "
         "skips the pairs that cannot be among them); needs --n-points",
     )
+    p.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        default=None,
+        help="run the row blocks on a dask.distributed cluster: a scheduler address "
+        "(tcp://host:8786) or local:N (N worker processes on this machine); the same cache "
+        "and bitwise the same matrix as the threads (pip install 'shapetree[dask]')",
+    )
     _add_run_options(p)
     p.set_defaults(func=cmd_distances)
 
@@ -307,9 +317,20 @@ def cmd_distances(args: argparse.Namespace) -> int:
     if index is not None:
         meta["database"] = args.shapes[0]
     if args.neighbours is not None:
+        if args.dask is not None:
+            raise ShapeTreeError(
+                "--neighbours runs the pruned search in threads on this machine; --dask runs "
+                "the full matrix's blocks on a cluster: choose one of them"
+            )
         return _write_neighbours(args, curves, names, config, cache, meta, out)
     d = distance_matrix(
-        curves, None, config, progress=progress, cache_dir=cache, workers=args.workers
+        curves,
+        None,
+        config,
+        progress=progress,
+        cache_dir=cache,
+        workers=args.workers,
+        scheduler=args.dask,
     )
     d = np.maximum(d, 0.0)
     with atomic_open(out, "wb") as fh:

@@ -42,6 +42,13 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
         "as the headline, with the pairwise score kept under 'pairwise'",
     },
     "workers": {"type": int, "default": 2, "help": "threads"},
+    "dask": {
+        "type": str,
+        "default": None,
+        "help": "run the matrix's row blocks on a dask.distributed cluster: a scheduler "
+        "address (tcp://host:8786) or local:N (N worker processes started for the run); "
+        "the same cache and numbers as the threads (pip install 'shapetree[dask]')",
+    },
     "neighbours": {
         "type": int,
         "default": None,
@@ -93,6 +100,11 @@ def _resolve(params: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
             raise ShapeTreeError(f"neighbours must be an integer >= 1, got {p['neighbours']!r}")
         if p["neighbours"] < 1:
             raise ShapeTreeError(f"neighbours must be an integer >= 1, got {p['neighbours']!r}")
+        if p["dask"] is not None:
+            raise ShapeTreeError(
+                "neighbours runs the pruned search in threads on this machine; the Dask "
+                "scheduler runs the exhaustive matrix's blocks: choose one of them"
+            )
         if p["rerank"] != "none":
             raise ShapeTreeError(
                 "rerank='tpg' diffuses the whole distance matrix; it cannot be combined with "
@@ -183,6 +195,7 @@ def evaluate(
             progress=progress,
             desc=name,
             stats=stats,
+            scheduler=p["dask"],
         )
         if arrays is not None:
             arrays.update(costs=costs, labels=labels)
