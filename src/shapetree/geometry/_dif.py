@@ -378,3 +378,39 @@ __all__ = [
     "weighted_dif_kind",
     "weighted_dif_many",
 ]
+
+
+# --- plain-IEEE twin for the symmetric matcher ---------------------------------------
+# The symmetric matcher (matching._subcurves) needs dif(a, b) == dif(b, a) *bitwise*.
+# Under the fast-math flag "contract" LLVM may fuse ``a1 * b2 - a2 * b1`` into an FMA,
+# whose rounding depends on which product is fused, so the swapped call can differ in
+# the last bit. These twins compute the same values with no fast-math flags: products
+# commute exactly and ``x - y == -(y - x)`` in IEEE arithmetic, so swapping the
+# arguments gives the same float. Not in ``__all__`` (every name there is compiled with
+# :data:`FASTMATH`).
+
+_jit_ieee = njit(cache=True, nogil=True)
+
+
+@_jit_ieee
+def _ieee_lagrange(a1: float, a2r: float, a2i: float, b1: float, b2r: float, b2i: float) -> float:
+    wr = a1 * b2r - a2r * b1
+    wi = a1 * b2i - a2i * b1
+    return wr * wr + wi * wi
+
+
+@_jit_ieee
+def exact_dif_kind(
+    a1: float, a2r: float, a2i: float, b1: float, b2r: float, b2i: float, hyper: bool
+) -> float:
+    """:func:`helmert_dif_kind` without fast-math: bitwise symmetric in its two triangles."""
+    if is_zero_shape(a1, a2r, a2i) or is_zero_shape(b1, b2r, b2i):
+        return DEGENERATE_DIF
+    num = _ieee_lagrange(a1, a2r, a2i, b1, b2r, b2i)
+    if not hyper:
+        return num if num < 1.0 else 1.0
+    p = a1 * b1
+    den = _ieee_lagrange(a1, a2r, a2i, b1, b2r, -b2i) + _HYP_EPS_H * (p * p)
+    if num < den:
+        return num / den
+    return 1.0 if num > 0.0 else 0.0

@@ -24,6 +24,7 @@ __all__ = [
     "mirror_curve",
     "model_curve",
     "model_passes",
+    "pair_cost",
     "target_curves",
 ]
 
@@ -120,8 +121,8 @@ def _check_batched(config: MatchConfig) -> None:
         raise ShapeTreeError(
             f"{what} is a single-pair matcher (a dynamic program over pairs of subcurves, "
             "not the shape-tree kernel the batched engine runs): use "
-            "shapetree.matching.match(a, b, config) or shapetree.matching._api.pair_cost "
-            "for each pair"
+            "shapetree.matching.match(a, b, config) or shapetree.matching._api.pair_cost(a, "
+            "b, config) for each pair"
         )
 
 
@@ -176,6 +177,121 @@ def _unmirror(res: MatchResult, original: np.ndarray, closed: bool) -> MatchResu
     return res
 
 
+def _pair_dp(
+    a: np.ndarray,
+    b: np.ndarray,
+    config: MatchConfig,
+    closed: bool,
+    *,
+    correspondence: bool,
+    names: tuple[str, str],
+) -> MatchResult:
+    """The pair-of-subcurves matchers (:mod:`._subcurves`): ``matcher="symmetric"`` and/or
+    ``replace_any``; the cheapest over the mirror passes and phases.
+
+    Directed (``replace_any`` alone): A sampled once (and mirrored), B at every phase, as
+    :func:`_directed`. Symmetric: the set of sampled pairs is closed under exchanging the
+    curves, ``(mirror^σ(A_p), B_0)`` and ``(A_0, mirror^σ(B_p))`` for every phase ``p`` and
+    pass ``σ``, so the minimum is symmetric too.
+    """
+    from shapetree.matching._subcurves import pair_curve, pair_tables, pair_top, pair_traceback
+
+    sym = config.matcher == "symmetric"
+    if not closed and config.n_trees > 1:
+        raise ShapeTreeError(
+            "the pair matchers (symmetric, replace_any) have one shape-tree rule for open "
+            "curves (split='half'): use n_trees=1"
+        )
+    n_pass = 2 if config.mirror else 1
+    if sym:
+        sa = target_curves(a, config, closed=closed, name=names[0])
+        sb = target_curves(b, config, closed=closed, name=names[1])
+        pairs = []
+        for p in range(len(sa)):
+            for sig in range(n_pass):
+                pairs.append(((p, sig, 0, 0), (sa[p], sig), (sb[0], 0)))
+                if p or sig:
+                    pairs.append(((0, 0, p, sig), (sa[0], 0), (sb[p], sig)))
+    else:
+        a0 = model_curve(a, config, closed=closed, name=names[0])
+        sb = target_curves(b, config, closed=closed, name=names[1])
+        pairs = [
+            ((0, sig, p, 0), (a0, sig), (sb[p], 0)) for p in range(len(sb)) for sig in range(n_pass)
+        ]
+    cache: dict = {}
+
+    def prep(pts: np.ndarray, sig: int):
+        key = (id(pts), sig)
+        if key not in cache:
+            q = mirror_curve(pts, closed=closed) if sig else pts
+            cache[key] = (
+                q,
+                pair_curve(
+                    q,
+                    closed=closed,
+                    weight=config.weight,
+                    length_power=config.length_power,
+                    dif=config.dif,
+                ),
+            )
+        return cache[key]
+
+    kw = dict(
+        symmetric=sym,
+        replace_any=config.replace_any,
+        dif=config.dif,
+        occlusion=config.occlusion,
+        segment_weight=config.segment_weight,
+        band=config.band,
+    )
+    best = None
+    for label, (pa, siga), (pb, sigb) in pairs:
+        (qa, ca), (qb, cb) = prep(pa, siga), prep(pb, sigb)
+        S, H, ok = pair_tables(ca, cb, **kw)
+        cost, top = pair_top(S, ca, cb, symmetric=sym, n_trees=config.n_trees)
+        if best is None or cost < best[0]:
+            best = (cost, label, qa, qb, ca, cb, top, (S, H, ok) if correspondence else None)
+    assert best is not None
+    cost, (pha, siga, phb, sigb), qa, qb, ca, cb, top, tabs = best
+    if correspondence and tabs is not None and np.isfinite(cost):
+        S, H, ok = tabs
+        a_to_b, b_to_a, replaced = pair_traceback(
+            S,
+            H,
+            ok,
+            ca,
+            cb,
+            top,
+            symmetric=sym,
+            dif=config.dif,
+            occlusion=config.occlusion,
+            segment_weight=config.segment_weight,
+        )
+    else:
+        a_to_b, b_to_a, replaced = (
+            np.full(qa.shape[0], np.nan),
+            np.full(qb.shape[0], np.nan),
+            [],
+        )
+    res = MatchResult(
+        cost=max(float(cost), 0.0),
+        a=qa,
+        b=qb,
+        closed=closed,
+        a_to_b=a_to_b,
+        b_to_a=b_to_a,
+        replaced=replaced,
+        tree_index=int(top[1]) if top[0] != "open" else 0,
+        costs=np.array([cost]),
+        phase=phb,
+    )
+    if siga:
+        orig = prep(pa, 0)[0]
+        res = _unmirror(res, orig, closed)
+    res.mirrored = bool(siga or sigb)
+    return res
+
+
 def _directed(
     a: np.ndarray,
     b: np.ndarray,
@@ -186,6 +302,8 @@ def _directed(
     names: tuple[str, str],
 ) -> MatchResult:
     """ψ(A, B) under ``config``: the cheapest over mirror passes, phases and shape-trees."""
+    if config.matcher != "directed" or config.replace_any:
+        return _pair_dp(a, b, config, closed, correspondence=correspondence, names=names)
     model_pts = model_curve(a, config, closed=closed, name=names[0])
     targets = target_curves(b, config, closed=closed, name=names[1])
     passes = list(enumerate(model_passes(model_pts, config, closed=closed)))
@@ -241,7 +359,11 @@ def match(
         ``b`` is tried.
     **options
         Any :class:`MatchConfig` field, changed on top of ``config``
-        (``match(a, b, n_points=100, occlusion=0.5)``).
+        (``match(a, b, n_points=100, occlusion=0.5)``). ``matcher="symmetric"`` and
+        ``replace_any=True`` run the slower dynamic programs over pairs of subcurves
+        (:mod:`shapetree.matching._subcurves`); with them ``res.a`` / ``res.b`` are the
+        samplings that were matched (under the symmetric matcher either may be a
+        phase-shifted or, with ``res.mirrored``, B's mirrored copy).
 
     Returns
     -------
@@ -264,14 +386,59 @@ def match(
     True
     """
     cfg = resolve_config(config, **options)
+    return _configured(a, b, cfg, closed, correspondence=True)
+
+
+def pair_cost(
+    a: ArrayLike,
+    b: ArrayLike,
+    config: MatchConfig | str | None = None,
+    *,
+    closed: bool = True,
+    **options: Any,
+) -> float:
+    """``match(a, b, config).cost`` without the correspondence, for every configuration.
+
+    The one-pair entry point for the options the batched engine does not run
+    (``matcher="symmetric"``, ``replace_any=True``: dynamic programs over pairs of
+    subcurves, :mod:`._subcurves`); for the directed shape-tree matcher it is the same
+    number as :func:`shapetree.retrieval.distance_matrix` gives.
+
+    Parameters
+    ----------
+    a, b : array_like, shapes (n, 2) and (m, 2)
+    config : MatchConfig, str or None
+    closed : bool
+    **options
+        :class:`MatchConfig` fields changed on top of ``config``.
+
+    Returns
+    -------
+    float
+    """
+    cfg = resolve_config(config, **options)
+    return _configured(a, b, cfg, closed, correspondence=False).cost
+
+
+def _configured(
+    a: ArrayLike, b: ArrayLike, cfg: MatchConfig, closed: bool, *, correspondence: bool
+) -> MatchResult:
     sym = cfg.symmetrize
+    if cfg.matcher == "symmetric":  # symmetric by construction (symmetrize is "none")
+        res = _directed(
+            a, b, cfg, closed, correspondence=correspondence, names=("curve A", "curve B")
+        )
+        res.forward_cost = res.backward_cost = res.cost
+        return res
     if sym == "reverse":
         back = _directed(b, a, cfg, closed, correspondence=False, names=("curve B", "curve A"))
-        res = _directed(a, b, cfg, closed, correspondence=True, names=("curve A", "curve B"))
+        res = _directed(
+            a, b, cfg, closed, correspondence=correspondence, names=("curve A", "curve B")
+        )
         res.forward_cost, res.backward_cost = res.cost, back.cost
         res.cost = back.cost
         return res
-    res = _directed(a, b, cfg, closed, correspondence=True, names=("curve A", "curve B"))
+    res = _directed(a, b, cfg, closed, correspondence=correspondence, names=("curve A", "curve B"))
     res.forward_cost = res.cost
     if sym == "none":
         return res
