@@ -20,6 +20,19 @@ What is measured, per size ``n = m``:
 * ``stack``: the retrieval engine's path, all models against a target in one kernel call
   (``ModelStack``), in float64 and in float32 (the engine's default precision), exact and
   with ``band=3``; ``f32 x`` is the float32 speed-up over float64 in the same run.
+
+The options of issue 15 (``--option-sizes``, default n = m = 16, 24, 32, 50; one matching
+of one pair, float64, cost only, ratios to the directed Procrustes shape-tree matcher in
+the same run and with the same band):
+
+* ``hyperbolic``: ``dif="hyperbolic"`` in the shape-tree kernel;
+* ``symmetric``: ``matcher="symmetric"`` (:mod:`shapetree.matching._subcurves`, all pairs
+  of subcurves, O(n^2 m^2 (n + m))), exact and with ``band=3``;
+* ``replace_any``: arbitrary replacement, O(n^3 m^3): **slow, exact, single-pair** (tens of
+  seconds at n = m = 50 without a band), exact and with ``band=3``.
+
+``python benchmarks/bench_match.py --options-only`` measures only these and updates the
+``options`` entry of the existing JSON.
 """
 
 from __future__ import annotations
@@ -44,6 +57,7 @@ from shapetree.matching import (  # noqa: E402
 )
 from shapetree.matching._batch import ModelStack  # noqa: E402
 from shapetree.matching._reference import reference_match_cost  # noqa: E402
+from shapetree.matching._subcurves import pair_curve, pair_tables, pair_top  # noqa: E402
 from shapetree.tree import build_shape_tree  # noqa: E402
 
 
@@ -67,6 +81,79 @@ def timeit(fn, repeats: int) -> float:
     return float(np.median(times))
 
 
+def time_once(fn, repeats: int) -> float:
+    """Median seconds per call; one call (after the warm-up) when a call takes over 2 s."""
+    t0 = time.perf_counter()
+    fn()
+    first = time.perf_counter() - t0
+    if first > 2.0:
+        return first
+    return timeit(fn, repeats)
+
+
+def option_rows(sizes: list[int], repeats: int) -> list[dict]:
+    """Timings of the issue-15 options against the directed matcher (module docstring)."""
+    rng = np.random.default_rng(15)
+    # compile every kernel once on a small pair (numba's first call)
+    a0, b0 = shape(rng, 8), shape(rng, 8)
+    for sym, rep in ((True, False), (False, True)):
+        c0, c1 = (pair_curve(x, closed=True, weight=1.0, length_power=1.0, dif="procrustes")
+                  for x in (a0, b0))  # fmt: skip
+        pair_tables(c0, c1, symmetric=sym, replace_any=rep, dif="procrustes", occlusion=1.0)
+    rows = []
+    for n in sizes:
+        a, b = shape(rng, n), shape(rng, n)
+        row: dict = {"n": n}
+        tg = prepare_target(b)
+        for band in (None, 3.0):
+            tag = "exact" if band is None else "band3"
+            for dif in ("procrustes", "hyperbolic"):
+                md = prepare_model(a, dif=dif)
+                p = MatchParams(band=band, dif=dif, occlusion=1.0)
+                row[f"directed_{dif}_{tag}_ms"] = 1e3 * timeit(
+                    lambda md=md, p=p, tg=tg: match_cost(md, tg, p), repeats
+                )
+            row[f"hyperbolic_over_directed_{tag}"] = (
+                row[f"directed_hyperbolic_{tag}_ms"] / row[f"directed_procrustes_{tag}_ms"]
+            )
+            ca = pair_curve(a, closed=True, weight=1.0, length_power=1.0, dif="procrustes")
+            cb = pair_curve(b, closed=True, weight=1.0, length_power=1.0, dif="procrustes")
+            for name, sym, rep in (("symmetric", True, False), ("replace_any", False, True)):
+
+                def run(sym=sym, rep=rep, band=band, ca=ca, cb=cb):
+                    S, _, _ = pair_tables(
+                        ca, cb, symmetric=sym, replace_any=rep, dif="procrustes",
+                        occlusion=1.0, band=band,
+                    )  # fmt: skip
+                    return pair_top(S, ca, cb, symmetric=sym)[0]
+
+                ms = 1e3 * time_once(run, repeats)
+                row[f"{name}_{tag}_ms"] = ms
+                row[f"{name}_over_directed_{tag}"] = ms / row[f"directed_procrustes_{tag}_ms"]
+        rows.append(row)
+    return rows
+
+
+def print_options(rows: list[dict]) -> None:
+    print("Issue-15 options, one closed pair, one matching, float64 (medians; x = / directed)")
+    print(
+        f"{'n=m':>5} {'dir ms':>8} {'hyp x':>6} {'sym ms':>9} {'sym x':>7} {'rep ms':>10} "
+        f"{'rep x':>9} | band 3: {'dir ms':>7} {'hyp x':>6} {'sym ms':>8} {'sym x':>7} "
+        f"{'rep ms':>9} {'rep x':>8}"
+    )
+    for r in rows:
+        print(
+            f"{r['n']:>5} {r['directed_procrustes_exact_ms']:>8.3f} "
+            f"{r['hyperbolic_over_directed_exact']:>6.2f} {r['symmetric_exact_ms']:>9.1f} "
+            f"{r['symmetric_over_directed_exact']:>7.0f} {r['replace_any_exact_ms']:>10.1f} "
+            f"{r['replace_any_over_directed_exact']:>9.0f} |         "
+            f"{r['directed_procrustes_band3_ms']:>7.3f} "
+            f"{r['hyperbolic_over_directed_band3']:>6.2f} "
+            f"{r['symmetric_band3_ms']:>8.1f} {r['symmetric_over_directed_band3']:>7.0f} "
+            f"{r['replace_any_band3_ms']:>9.1f} {r['replace_any_over_directed_band3']:>8.0f}"
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[32, 50, 64, 100])
@@ -75,9 +162,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bands", type=float, nargs="+", default=[2.0, 3.0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
     ap.add_argument("--json", type=Path, default=RESULTS / "bench_match.json")
+    ap.add_argument("--option-sizes", type=int, nargs="*", default=[16, 24, 32, 50])
+    ap.add_argument(
+        "--options-only",
+        action="store_true",
+        help="only the issue-15 options; update the 'options' entry of the existing JSON",
+    )
     args = ap.parse_args(argv)
     rng = np.random.default_rng(0)
     reps = 3 if args.quick else 7
+    command = "python benchmarks/bench_match.py" + (" " + " ".join(argv) if argv else "")
+    if args.options_only:
+        import json
+
+        opt = option_rows(args.option_sizes, reps)
+        print_options(opt)
+        out = json.loads(args.json.read_text()) if args.json.exists() else {}
+        out["options"] = {"command": command, "machine": machine(), "rows": opt}
+        write_json(args.json, out)
+        print(f"wrote {args.json}")
+        return 0
     rows = []
     for n in sorted(set(args.sizes) | set(args.reference_sizes)):
         pairs = [(shape(rng, n), shape(rng, n)) for _ in range(args.pairs)]
@@ -178,12 +282,16 @@ def main(argv: list[str] | None = None) -> int:
             " (theory: O(n m^3) = n^4)"
         )
     out = {
-        "command": "python benchmarks/bench_match.py" + (" " + " ".join(argv) if argv else ""),
+        "command": command,
         "machine": machine(),
         "rows": rows,
         "growth_exponent": slope,
         "target": "exact closed matching at n = m = 50 in <= 5 ms on one core",
     }
+    if args.option_sizes:
+        opt = option_rows(args.option_sizes, reps)
+        print_options(opt)
+        out["options"] = {"command": command, "machine": machine(), "rows": opt}
     write_json(args.json, out)
     print(f"wrote {args.json}")
     return 0
