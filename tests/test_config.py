@@ -44,6 +44,9 @@ def _blob(seed: int, n: int = 90) -> np.ndarray:
         ("smooth", 0.7),
         ("symmetrize", "sum"),
         ("precision", "float16"),
+        ("dif", "poincare"),
+        ("matcher", "both"),
+        ("replace_any", "yes"),
     ],
 )
 def test_bad_values_name_the_option(field: str, value: object) -> None:
@@ -83,6 +86,8 @@ def test_presets() -> None:
     )
     assert p.segment_weight == 1.0 and p.symmetrize == "none" and p.occlusion is None
     assert PRESETS["general"] == MatchConfig()  # the dataclass defaults are the general preset
+    for cfg in PRESETS.values():  # the issue-15 options are off in every preset
+        assert (cfg.dif, cfg.matcher, cfg.replace_any) == ("procrustes", "directed", False)
     assert match(_blob(1), _blob(2)).cost == match(_blob(1), _blob(2), "general").cost
 
 
@@ -195,6 +200,26 @@ def test_preset_flag_and_changes_reach_the_matcher(tmp_path, capsys) -> None:
         assert main(["match", str(fa), str(fb), "--json", str(tmp_path / "m.json"), *argv]) == 0
         capsys.readouterr()
         doc = json.loads((tmp_path / "m.json").read_text())
+        assert MatchConfig.from_dict(doc["config"]) == cfg
+        assert doc["cost"] == pytest.approx(match(a, b, cfg).cost, rel=1e-6)
+
+
+def test_issue15_options_reach_match_from_the_command_line(tmp_path, capsys) -> None:
+    a, b = _blob(11, 40), _blob(12, 40)
+    fa, fb = tmp_path / "a.csv", tmp_path / "b.csv"
+    np.savetxt(fa, a, delimiter=",")
+    np.savetxt(fb, b, delimiter=",")
+    base = PRESETS["general"].replace(n_points=12, phases=1)
+    for argv, cfg in [
+        (["--dif", "hyperbolic"], base.replace(dif="hyperbolic")),
+        (["--matcher", "symmetric"], base.replace(matcher="symmetric")),
+        (["--replace-any", "--occlusion", "1"], base.replace(replace_any=True, occlusion=1.0)),
+    ]:
+        out = tmp_path / "m.json"
+        flags = ["--n-points", "12", "--phases", "1", *argv]
+        assert main(["match", str(fa), str(fb), "--json", str(out), *flags]) == 0
+        capsys.readouterr()
+        doc = json.loads(out.read_text())
         assert MatchConfig.from_dict(doc["config"]) == cfg
         assert doc["cost"] == pytest.approx(match(a, b, cfg).cost, rel=1e-6)
 
