@@ -65,3 +65,24 @@ def test_fingerprint_changes_with_any_relevant_source(tmp_path):
     # a file outside the fingerprinted packages does not matter
     (tmp_path / "unrelated.py").write_text("x = 1\n")
     assert _cache._fingerprint("1", tmp_path) == base
+
+
+def test_matching_scope_ignores_detection_sources(tmp_path):
+    """A distance cache or shape database (scope "matching") survives an edit of the
+    detection code; the "all" scope (detection caches) does not."""
+    src = Path(_cache.__file__).resolve().parent
+    for pkg in FINGERPRINT_PACKAGES:
+        shutil.copytree(src / pkg, tmp_path / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    scopes = _cache.FINGERPRINT_SCOPES
+    before = {s: _cache._fingerprint("1", tmp_path, scopes[s]) for s in scopes}
+    f = sorted((tmp_path / "detection").glob("*.py"))[0]
+    f.write_bytes(f.read_bytes() + b"\n# edited\n")
+    after = {s: _cache._fingerprint("1", tmp_path, scopes[s]) for s in scopes}
+    assert after["matching"] == before["matching"]
+    assert after["all"] != before["all"]
+    g = sorted((tmp_path / "matching").glob("*.py"))[0]
+    g.write_bytes(g.read_bytes() + b"\n# edited\n")
+    assert _cache._fingerprint("1", tmp_path, scopes["matching"]) != before["matching"]
+    assert code_fingerprint("matching") != code_fingerprint("all")
+    with pytest.raises(ValueError, match="scope"):
+        code_fingerprint("detection")

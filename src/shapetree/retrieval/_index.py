@@ -4,7 +4,8 @@
 its sampled model curve (:func:`shapetree.matching._api.model_curve`) and its target
 samplings, one per phase (:func:`shapetree.matching._api.target_curves`), together with
 the shape names, the :class:`~shapetree.matching.MatchConfig` that sampled them, the
-package version and :func:`shapetree._cache.code_fingerprint`. The retrieval engine
+package version and :func:`shapetree._cache.code_fingerprint` (its ``"matching"`` scope: the
+code a matching cost depends on). The retrieval engine
 (:func:`shapetree.retrieval.distance_matrix`, :func:`~shapetree.retrieval.search`) takes it
 in place of a list of curves and uses the stored samples as they are, so the distances are
 the same numbers as from the curves (and the engine's block cache is shared).
@@ -92,7 +93,7 @@ def _current() -> tuple[str, str]:
     import shapetree
     from shapetree._cache import code_fingerprint
 
-    return str(shapetree.__version__), code_fingerprint()
+    return str(shapetree.__version__), code_fingerprint("matching")
 
 
 def _pack(arrays: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
