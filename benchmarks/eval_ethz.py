@@ -3,6 +3,7 @@
 Usage::
 
     python3 benchmarks/eval_ethz.py [--workers 2] [--classes swans bottles] [--k 5]
+    python3 benchmarks/eval_ethz.py --edges own --workers 1   # -> results/ethz_own.json
 
 Writes ``benchmarks/results/ethz.json`` (DR at 0.3 / 0.4 FPPI under the 20% and
 50% IoU rules, per class and mean; seconds per image; all parameters), the
@@ -37,14 +38,29 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--classes", nargs="*", default=None)
     ap.add_argument("--k", type=int, default=5)
-    ap.add_argument("--json", default=str(REPO / "benchmarks" / "results" / "ethz.json"))
-    ap.add_argument("--out-dir", default=str(REPO / "benchmarks" / "results"))
+    ap.add_argument(
+        "--edges",
+        choices=("pb", "own"),
+        default="pb",
+        help="pb: the shipped Pb maps; own: the project's edge map of each image",
+    )
+    ap.add_argument("--json", default=None, help="default results/ethz.json (ethz_own.json)")
+    ap.add_argument(
+        "--out-dir",
+        default=None,
+        help="figures (default results/ for pb, none for own: the figure names are shared)",
+    )
     ap.add_argument(
         "--cache-dir",
         default=None,
         help="default: $SHAPETREE_CACHE/ethz_detect (else ~/.cache/shapetree/ethz_detect)",
     )
     args = ap.parse_args()
+    results = REPO / "benchmarks" / "results"
+    if args.json is None:
+        args.json = str(results / ("ethz.json" if args.edges == "pb" else "ethz_own.json"))
+    if args.out_dir is None and args.edges == "pb":
+        args.out_dir = str(results)
     res = evaluate_ethz(
         args.data,
         json_path=None,
@@ -54,6 +70,7 @@ def main() -> None:
         params=DetectParams(),
         k=args.k,
         workers=args.workers,
+        edges=args.edges,
     )
     res["machine"] = machine()
     res["command"] = "python3 benchmarks/eval_ethz.py " + " ".join(sys.argv[1:])

@@ -75,3 +75,44 @@ def test_demo_ranking_is_deterministic():
     a = demo_ranking("S", n_points=40, seed=3)
     b = demo_ranking("S", n_points=40, seed=3)
     assert [(c.name, c.cost) for c in a.candidates] == [(c.name, c.cost) for c in b.candidates]
+
+
+def test_detection_scene_is_seeded_and_holds_the_broken_outline():
+    from shapetree.demo._scene import box_iou, detection_scene
+
+    a = detection_scene("star", seed=4, size=(150, 190), object_size=90.0)
+    b = detection_scene("star", seed=4, size=(150, 190), object_size=90.0)
+    assert a.image.shape == (150, 190, 3) and np.array_equal(a.image, b.image)
+    assert a.image.min() >= 0.0 and a.image.max() <= 1.0
+    x1, y1, x2, y2 = a.box
+    assert max(x2 - x1, y2 - y1) == pytest.approx(90.0)
+    assert 0 <= x1 < x2 <= 190 and 0 <= y1 < y2 <= 150
+    assert np.allclose(a.box, [*a.outline.min(axis=0), *a.outline.max(axis=0)])
+    # the outline is dark ink except in its gaps: some outline points lie on background
+    grey = a.image.mean(axis=2)
+    on = grey[np.rint(a.outline[:, 1]).astype(int), np.rint(a.outline[:, 0]).astype(int)]
+    dark = on < 0.35
+    assert 0.7 < dark.mean() < 0.97
+    assert box_iou(a.box, a.box) == pytest.approx(1.0)
+    assert box_iou(a.box, (x2, y2, x2 + 5, y2 + 5)) == 0.0
+    with pytest.raises(ShapeTreeError, match="too small"):
+        detection_scene("star", size=(60, 60))
+
+
+def test_demo_detection_step_finds_the_star(tmp_path, capsys):
+    import argparse
+
+    from PIL import Image
+
+    from shapetree.cli._demo import _detection_step
+
+    pictures: list = []
+    args = argparse.Namespace(detect_shape="star", seed=0)
+    assert _detection_step(args, tmp_path, pictures) is True
+    text = capsys.readouterr().out
+    assert "found (IoU >= 0.5)" in text and "NOT" not in text
+    assert pictures == [
+        ("detection in a cluttered scene (Fig. 5)", tmp_path / "demo_detection.png")
+    ]
+    with Image.open(tmp_path / "demo_detection.png") as im:
+        assert im.format == "PNG" and im.width > 400

@@ -19,7 +19,7 @@ from shapetree.curves._validate import ACCEPTED_FORMS, _as_xy
 from shapetree.geometry import outline_dif
 
 from ._contours import TracedContour, polyline_length, trace_contours_detailed
-from ._edges import edge_map, load_edges, load_image
+from ._edges import EDGE_METHODS, edge_map, load_edges, load_image
 from ._model import DetectionModel, load_model
 from ._stitch import complete_matches, run_stitch
 from ._tables import contour_tables
@@ -117,6 +117,9 @@ class DetectParams:
         ranking terms lift the mean DR at 0.4 FPPI from 0.626 (cost alone) to
         0.756; picked on four classes and scored on the fifth, 0.750
         (``benchmarks/ethz_rescore.py``).
+    edge_method : {"own", "gradient"}
+        The :func:`edge_map` method used when no edge map is given ("own": the
+        boundary detector on Pb's cues).
     """
 
     m: int = 30
@@ -150,8 +153,13 @@ class DetectParams:
     border_margin: float = 6.0
     outline_check: float = 0.4
     frame_prior: float = 0.075
+    edge_method: str = "own"
 
     def __post_init__(self) -> None:
+        if self.edge_method not in EDGE_METHODS:
+            raise ShapeTreeError(
+                f"DetectParams.edge_method must be one of {EDGE_METHODS}, got {self.edge_method!r}"
+            )
         lo, hi = self.contour_min_points, self.contour_max_points
         for field_name, v in (("contour_min_points", lo), ("contour_max_points", hi)):
             if isinstance(v, bool) or not isinstance(v, numbers.Integral):
@@ -513,7 +521,7 @@ def detect_detailed(
     elif edges is None:
         if img is None:
             raise ImageError("detect needs an image or an edge map")
-        e = edge_map(img)
+        e = edge_map(img, method=p.edge_method)
     elif isinstance(edges, (str, os.PathLike)):
         e = load_edges(edges)
     else:

@@ -1,8 +1,11 @@
-"""Soft edge maps: a multi-scale colour-gradient detector and the ETHZ Pb-map loader.
+"""Soft edge maps: the project's detectors and the ETHZ Pb-map loader.
 
 The paper (§4) used the Berkeley Pb boundary detector.  For ETHZ the dataset
 ships Pb maps (``*_edges.tif``), read with :func:`load_edges`.  For any other
-image :func:`edge_map` computes a project-made substitute:
+image :func:`edge_map` computes a project-made substitute: by default
+(``method="own"``) a boundary detector on Pb's own cues, see
+:mod:`shapetree.detection._boundary`; with ``method="gradient"`` the older
+multi-scale colour gradient:
 
 1. convert RGB to CIE-Lab (greyscale images use their single channel, scaled
    to the L range 0..100);
@@ -28,7 +31,11 @@ from scipy import ndimage
 
 from shapetree._errors import ImageError
 
-__all__ = ["edge_map", "load_edges", "load_image"]
+__all__ = ["EDGE_METHODS", "edge_map", "load_edges", "load_image"]
+
+#: Edge detectors of :func:`edge_map`: ``"own"`` (Pb's cues, :mod:`._boundary`, the
+#: default) and ``"gradient"`` (the multi-scale Lab gradient, kept for comparison).
+EDGE_METHODS = ("own", "gradient")
 
 
 def load_image(path: str | os.PathLike[str]) -> NDArray[np.float64]:
@@ -165,13 +172,13 @@ def _nms(mag: NDArray[np.float64], gx: NDArray[np.float64], gy: NDArray[np.float
 def edge_map(
     image: ArrayLike,
     *,
-    method: str = "gradient",
+    method: str = "own",
     sigmas: tuple[float, ...] = (1.0, 2.0, 4.0),
     thin: bool = True,
     norm_percentile: float = 99.0,
     floor: float = 0.02,
 ) -> NDArray[np.float64]:
-    """Soft edge strength map of an image (multi-scale Lab gradient + NMS).
+    """Soft edge strength map of an image: Pb-style boundary cues, or a Lab gradient.
 
     Parameters
     ----------
@@ -179,18 +186,26 @@ def edge_map(
         Greyscale or RGB(A) image; integer types are scaled by 255 (or 65535),
         floats are taken in ``[0, 1]`` (or ``[0, 255]`` when the maximum
         exceeds 1).
-    method : {"gradient"}
-        Edge detector.  Only the built-in colour-gradient detector is
-        available; for ETHZ use the shipped Pb maps via :func:`load_edges`.
+    method : {"own", "gradient"}
+        ``"own"`` (default): the project's boundary detector on Pb's cues,
+        χ² differences of brightness, colour and texton histograms between
+        half-discs at every orientation and two scales, combined with fixed
+        weights and thinned (see :mod:`shapetree.detection._boundary`); it
+        tells texture (water ripples, foliage) from object boundaries.
+        ``"gradient"``: the multi-scale Lab gradient magnitude below (fast,
+        but texture gives strong edges).  For ETHZ the shipped Pb maps are
+        read with :func:`load_edges`.
     sigmas : tuple of float
-        Gaussian scales in pixels (default 1, 2, 4).  Magnitudes are
-        multiplied by ``sigma`` (scale normalisation) before taking the max.
+        ``"gradient"`` only: Gaussian scales in pixels (default 1, 2, 4).
+        Magnitudes are multiplied by ``sigma`` (scale normalisation) before
+        taking the max.
     thin : bool
         Apply non-maximum suppression across the gradient direction so edges
         are about one pixel wide (default True).
     norm_percentile : float
-        Magnitudes are divided by this percentile (0..100) of the non-zero
-        magnitudes, then clipped to 1 (default 99).
+        ``"gradient"`` only: magnitudes are divided by this percentile (0..100)
+        of the non-zero magnitudes, then clipped to 1 (default 99).  The
+        ``"own"`` map has a fixed scale instead (no per-image normalisation).
     floor : float
         Normalised values below this are set to 0 (default 0.02).
 
@@ -208,11 +223,15 @@ def edge_map(
     """
     from shapetree._errors import ShapeTreeError
 
-    if method != "gradient":
-        raise ShapeTreeError(f"unknown edge method {method!r}; the only method is 'gradient'")
+    if method not in EDGE_METHODS:
+        raise ShapeTreeError(f"unknown edge method {method!r}; choose one of {EDGE_METHODS}")
     if len(sigmas) == 0 or any(not (s > 0) for s in sigmas):
         raise ShapeTreeError(f"sigmas must be positive, got {sigmas!r}")
     chans = _as_channels(image)
+    if method == "own":
+        from ._boundary import boundary_map
+
+        return boundary_map(chans, thin=thin, floor=floor)
     h, w, nc = chans.shape
     best = np.zeros((h, w))
     bgx = np.zeros((h, w))

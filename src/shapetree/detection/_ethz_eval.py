@@ -213,6 +213,17 @@ def _warm_up() -> None:
 
 EDGE_SOURCES = ("pb", "own")
 
+#: The stages timed per detection run (``DetectionRun.timings``), in order.
+STAGES = {
+    "edges": "edge map: the Pb map read from disk, or the own edge map computed (with the "
+    "image read and the model prepared)",
+    "contours": "contour tracing on the edge map",
+    "tables": "contour-vs-model tables (section 3 kernel)",
+    "stitch": "stitching DP with gaps",
+    "select": "verification and selection: reconstruction of each complete match, the "
+    "holistic outline check and size prior of the ranking score, non-maximum suppression",
+}
+
 
 def _run_one(
     task: tuple[str, str, str, str, str, dict, int, str],
@@ -312,8 +323,9 @@ def evaluate_ethz(
         ``overlap_20`` / ``overlap_50`` -> ``dr_fppi_0.3`` / ``dr_fppi_0.4``
         -> {class: DR, "mean": DR}; ``seconds_per_image_median`` /
         ``_p90`` (one detection run of one model on one image, single core);
-        ``seconds_breakdown_median`` (edges, contours, tables, stitch,
-        select); ``n_images``, ``n_gt``, ``params``, ``k``, ``classes``.
+        ``seconds_breakdown_median`` / ``_mean`` per stage (edges, contours,
+        tables, stitch, select; described under ``stages``); ``edges`` (the
+        source); ``n_images``, ``n_gt``, ``params``, ``k``, ``classes``.
     """
     if edges not in EDGE_SOURCES:
         raise ShapeTreeError(f"unknown edge source {edges!r}; choose one of {EDGE_SOURCES}")
@@ -376,8 +388,13 @@ def evaluate_ethz(
     out["seconds_per_image_p90"] = round(float(np.percentile(secs, 90)), 4)
     out["seconds_breakdown_median"] = {
         st: round(float(np.median([d["timings"].get(st, 0.0) for d in results.values()])), 4)
-        for st in ("edges", "contours", "tables", "stitch", "select")
+        for st in STAGES
     }
+    out["seconds_breakdown_mean"] = {
+        st: round(float(np.mean([d["timings"].get(st, 0.0) for d in results.values()])), 4)
+        for st in STAGES
+    }
+    out["stages"] = dict(STAGES)
     out["seconds_per_image_note"] = (
         "one model on one image, one process (single core), "
         + ("Pb edges read from disk" if edges == "pb" else "own edge map computed")

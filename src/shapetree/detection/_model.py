@@ -366,7 +366,9 @@ def load_model(
     ----------
     source : path-like or array_like, shape (n, 2)
         An image file (``.png``, ``.tif``, ``.pgm``, ...) holding a drawn
-        outline (see :func:`outline_from_image` and ``all_strokes``), a point
+        outline or a filled silhouette (see :func:`outline_from_image` and
+        ``all_strokes``), an SVG file (the first ``<path>``, ``<polygon>`` or
+        ``<polyline>``; see :mod:`shapetree.detection._svg`), a point
         file readable by :func:`shapetree.curves.load_points`, or the points
         themselves, in any form :func:`make_model` accepts (an OpenCV contour
         ``(n, 1, 2)``, a shapely ``Polygon``, ...).
@@ -389,7 +391,11 @@ def load_model(
         return source
     if isinstance(source, (str, os.PathLike)):
         p = Path(source)
-        if p.suffix.lower() in _IMAGE_EXT:
+        if p.suffix.lower() == ".svg":
+            from ._svg import read_svg_outline
+
+            pts, is_closed = read_svg_outline(p)
+        elif p.suffix.lower() in _IMAGE_EXT:
             strokes, is_closed = outline_strokes(p)
             if all_strokes and len(strokes) > 1 and closed is not True:
                 pts, free = chain_strokes(strokes)

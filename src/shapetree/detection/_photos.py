@@ -1,0 +1,381 @@
+"""Detection on a batch of users' photos (``shapetree detect MODEL IMAGES...``).
+
+:func:`collect_images` expands files and folders (image extensions, natural sort);
+:func:`detect_images` runs one model over them with a progress bar and writes, per image,
+a JSON record and a Fig. 5-style picture into a folder, or JSON lines into a file or a
+stream.  Runs are resumable: a record carries a key (hash of the model file, the
+parameters, ``k``, the edge source, the image file's path / size / modification time and
+the code fingerprint); an image whose record exists with the same key is skipped.  Every
+file goes through :mod:`shapetree._atomic`.  A bad image (unreadable, empty, too large, too
+small) gives an error record and a message; the batch goes on and counts it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import re
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from shapetree._atomic import atomic_write_bytes
+from shapetree._errors import ImageError, ShapeTreeError
+
+from ._detect import DetectParams, detect_detailed
+from ._edges import EDGE_METHODS, load_image
+from ._model import DetectionModel, load_model
+
+__all__ = ["IMAGE_EXTENSIONS", "BatchSummary", "collect_images", "detect_images", "natural_key"]
+
+#: File extensions taken from folders (files named on the command line are always tried).
+IMAGE_EXTENSIONS = (
+    ".jpg",
+    ".jpeg",
+    ".png",
+    ".tif",
+    ".tiff",
+    ".bmp",
+    ".gif",
+    ".webp",
+    ".ppm",
+    ".pgm",
+    ".pbm",
+)
+
+RECORD_VERSION = 1
+
+
+def natural_key(path: str | os.PathLike[str]) -> list[Any]:
+    """Sort key that orders ``img2`` before ``img10`` (case-insensitive)."""
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", str(path))]
+
+
+def collect_images(
+    sources: Iterable[str | os.PathLike[str]], *, recursive: bool = False
+) -> list[Path]:
+    """Image files named by ``sources``: files as given, folders expanded.
+
+    Parameters
+    ----------
+    sources : iterable of path-like
+        Files (kept whatever their extension, so a bad file is reported, not
+        skipped) and folders (their files with an extension in
+        :data:`IMAGE_EXTENSIONS`, in natural order).
+    recursive : bool
+        Also look into sub-folders.
+
+    Returns
+    -------
+    list of Path
+        In the order given, each folder's files naturally sorted; duplicates dropped.
+        A path that does not exist is kept (its record says so).
+
+    Raises
+    ------
+    ShapeTreeError
+        If no source is given, or a folder holds no image.
+    """
+    out: list[Path] = []
+    seen: set[Path] = set()
+    srcs = list(sources)
+    if not srcs:
+        raise ShapeTreeError("no images given")
+    for src in srcs:
+        p = Path(src)
+        if p.is_dir():
+            pattern = "**/*" if recursive else "*"
+            found = sorted(
+                (
+                    f
+                    for f in p.glob(pattern)
+                    if f.is_file() and f.suffix.lower() in IMAGE_EXTENSIONS
+                ),
+                key=natural_key,
+            )
+            if not found:
+                raise ShapeTreeError(
+                    f"folder {p} holds no image ({', '.join(IMAGE_EXTENSIONS)})"
+                    + ("" if recursive else "; --recursive looks into sub-folders")
+                )
+        else:
+            found = [p]
+        for f in found:
+            key = f.resolve() if f.exists() else f.absolute()
+            if key not in seen:
+                seen.add(key)
+                out.append(f)
+    return out
+
+
+def _file_sha(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _image_stamp(path: Path) -> dict[str, Any]:
+    try:
+        st = path.stat()
+        return {"path": str(path.absolute()), "size": st.st_size, "mtime_ns": st.st_mtime_ns}
+    except OSError:
+        return {"path": str(path.absolute()), "size": None, "mtime_ns": None}
+
+
+def _record_names(images: Sequence[Path]) -> list[str]:
+    """One output base name per image: its stem, with ``-2``, ``-3``... on collisions."""
+    names: list[str] = []
+    used: dict[str, int] = {}
+    for p in images:
+        stem = re.sub(r"[^\w.+-]", "_", p.stem) or "image"
+        n = used.get(stem.lower(), 0) + 1
+        used[stem.lower()] = n
+        names.append(stem if n == 1 else f"{stem}-{n}")
+    return names
+
+
+@dataclass
+class BatchSummary:
+    """What :func:`detect_images` did.
+
+    Attributes
+    ----------
+    done, skipped, failed : int
+        Images detected now, skipped (their record was already there with the same key),
+        and failed (an error record, written now or before: a skipped image whose record
+        is an error counts in both).
+    records : list of dict
+        The records of this call, in image order (skipped ones as read back).
+    seconds : float
+    """
+
+    done: int = 0
+    skipped: int = 0
+    failed: int = 0
+    records: list[dict[str, Any]] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def _detection_record(det: Any) -> dict[str, Any]:
+    doc = det.to_json()
+    doc.pop("model_points", None)  # the same for every detection: kept once per record
+    return doc
+
+
+def detect_images(
+    model: str | os.PathLike[str] | DetectionModel,
+    images: Sequence[str | os.PathLike[str]],
+    *,
+    out_dir: str | os.PathLike[str] | None = "shapetree-detect",
+    jsonl: str | os.PathLike[str] | IO[str] | None = None,
+    pictures: bool = True,
+    edges: str = "own",
+    k: int = 5,
+    params: DetectParams | None = None,
+    force: bool = False,
+    progress: bool = True,
+    report: Callable[[str], None] | None = None,
+) -> BatchSummary:
+    """Detect a model in many images, one record (and picture) per image, resumable.
+
+    Parameters
+    ----------
+    model : path-like or DetectionModel
+        A silhouette or outline image, an SVG file, or a point file (see
+        :func:`load_model`); a model that cannot be read raises at once.
+    images : sequence of path-like
+        Image files (see :func:`collect_images` to expand folders).
+    out_dir : path-like or None
+        Folder for ``<stem>.json`` records and ``<stem>.png`` pictures (created).  None
+        writes no files there (then ``jsonl`` must be given).
+    jsonl : path-like, text stream or None
+        Also (or instead) write the records as JSON lines: to this file (rewritten
+        atomically after each image; records already in it with the same key are kept
+        and their images skipped) or to this open stream (e.g. ``sys.stdout``).
+    pictures : bool
+        Write the Fig. 5-style picture of each image into ``out_dir`` (default True).
+    edges : {"own", "gradient"} or path-like
+        Edge source: the project's edge detectors (:func:`edge_map` methods) or, for a
+        single image, a stored soft edge map.
+    k : int
+        Detections per image.
+    params : DetectParams or None
+    force : bool
+        Recompute images whose records exist.
+    progress : bool
+        tqdm progress bar with ETA (on stderr).
+    report : callable or None
+        Receives one line per failed image (default: printed to stderr).
+
+    Returns
+    -------
+    BatchSummary
+
+    Raises
+    ------
+    ShapeTreeError
+        For a bad model, parameters or edge source, or when neither ``out_dir`` nor
+        ``jsonl`` is given; never for a bad image.
+    """
+    t_start = time.perf_counter()
+    p = params or DetectParams()
+    if out_dir is None and jsonl is None:
+        raise ShapeTreeError("nowhere to write: give an output folder or a JSON-lines target")
+    if k < 1:
+        raise ShapeTreeError(f"k must be >= 1, got {k}")
+    imgs = [Path(i) for i in images]
+    edge_file: Path | None = None
+    if str(edges) in EDGE_METHODS:
+        edge_desc: dict[str, Any] = {"method": str(edges)}
+        p = dataclasses.replace(p, edge_method=str(edges))
+    else:
+        edge_file = Path(edges)
+        if len(imgs) != 1:
+            raise ShapeTreeError(
+                f"a stored edge map ({edge_file}) fits one image, got {len(imgs)}; "
+                f"use --edges {'/'.join(EDGE_METHODS)} for many"
+            )
+        if not edge_file.is_file():
+            raise ShapeTreeError(f"edge map file not found: {edge_file}")
+        edge_desc = {"file": str(edge_file), "sha256": _file_sha(edge_file)}
+    if isinstance(model, DetectionModel):
+        mdl = model
+        model_desc: dict[str, Any] = {"name": mdl.name, "points": mdl.points.round(6).tolist()}
+    else:
+        mpath = Path(model)
+        if not mpath.is_file():
+            raise ShapeTreeError(f"model file not found: {mpath}")
+        mdl = load_model(mpath, m=p.m)
+        model_desc = {"file": str(mpath), "sha256": _file_sha(mpath)}
+    p = dataclasses.replace(p, m=len(mdl.points))
+    from shapetree import __version__
+    from shapetree._cache import code_fingerprint
+
+    base_key = {
+        "version": RECORD_VERSION,
+        "model": model_desc,
+        "params": p.as_dict(),
+        "k": k,
+        "edges": edge_desc,
+        "code": code_fingerprint(),
+        "pictures": bool(pictures and out_dir is not None),
+    }
+    from tqdm import tqdm
+
+    say = report or (lambda line: tqdm.write(line, file=sys.stderr))
+    out = Path(out_dir) if out_dir is not None else None
+    if out is not None:
+        if out.exists() and not out.is_dir():
+            raise ShapeTreeError(f"{out}: exists and is not a folder")
+        out.mkdir(parents=True, exist_ok=True)
+    jsonl_path: Path | None = None
+    stream: IO[str] | None = None
+    lines: dict[str, dict[str, Any]] = {}  # key -> record already in the JSON-lines file
+    if jsonl is not None:
+        if hasattr(jsonl, "write"):
+            stream = jsonl  # type: ignore[assignment]
+        else:
+            jsonl_path = Path(jsonl)
+            if jsonl_path.is_file():
+                for line in jsonl_path.read_text(encoding="utf-8").splitlines():
+                    try:
+                        rec = json.loads(line)
+                        lines[rec["key"]] = rec
+                    except (json.JSONDecodeError, KeyError, TypeError):
+                        continue  # a damaged line is recomputed
+    names = _record_names(imgs)
+    summary = BatchSummary()
+    bar = tqdm(imgs, desc="detect", unit="img", disable=not progress, file=sys.stderr)
+    for img_path, name in zip(bar, names, strict=True):
+        stamp = _image_stamp(img_path)
+        key = hashlib.sha256(
+            json.dumps({**base_key, "image": stamp}, sort_keys=True).encode()
+        ).hexdigest()[:24]
+        rec_path = out / f"{name}.json" if out is not None and jsonl is None else None
+        pic_path = out / f"{name}.png" if out is not None and pictures else None
+        old = None if force else _existing(key, rec_path, pic_path, lines)
+        if old is not None:
+            summary.skipped += 1
+            if old.get("status") != "ok":  # the same file fails the same way: say so again
+                summary.failed += 1
+                say(f"shapetree: {img_path}: error: {old.get('error')} (recorded before)")
+            summary.records.append(old)
+            if stream is not None:
+                stream.write(json.dumps(old) + "\n")
+            continue
+        record: dict[str, Any] = {
+            "key": key,
+            "image": str(img_path),
+            "image_file": stamp,
+            "model": model_desc.get("file", model_desc.get("name")),
+            "edges": edge_desc,
+            "k": k,
+        }
+        t0 = time.perf_counter()
+        try:
+            if stamp["size"] == 0:
+                raise ImageError(f"image file {img_path} is empty (0 bytes)")
+            image = load_image(img_path)
+            run = detect_detailed(mdl, image, edges=edge_file, k=k, params=p)
+            if pic_path is not None:
+                from shapetree.plotting import plot_detections
+
+                plot_detections(run, image, title=f"{mdl.name} in {img_path.name}", path=pic_path)
+            record.update(
+                status="ok",
+                image_size=[int(image.shape[1]), int(image.shape[0])],
+                seconds=round(time.perf_counter() - t0, 4),
+                timings={s: round(v, 4) for s, v in run.timings.items()},
+                n_contours=len(run.contours),
+                model_points=run.model.points.round(3).tolist(),
+                picture=str(pic_path) if pic_path is not None else None,
+                detections=[_detection_record(d) for d in run.detections],
+            )
+            summary.done += 1
+        except (ShapeTreeError, OSError, MemoryError) as exc:
+            msg = " ".join(str(exc).split()) or type(exc).__name__
+            record.update(status="error", error=msg, detections=[])
+            summary.failed += 1
+            say(f"shapetree: {img_path}: error: {msg}")
+        record["params"] = p.as_dict()
+        record["shapetree_version"] = __version__
+        summary.records.append(record)
+        if rec_path is not None:
+            atomic_write_bytes(
+                rec_path, (json.dumps(record, indent=1) + "\n").encode(), fsync=False
+            )
+        if jsonl_path is not None:
+            lines[key] = record
+            text = "".join(json.dumps(r) + "\n" for r in lines.values())
+            atomic_write_bytes(jsonl_path, text.encode(), fsync=False)
+        if stream is not None:
+            stream.write(json.dumps(record) + "\n")
+            stream.flush()
+    bar.close()
+    summary.seconds = time.perf_counter() - t_start
+    return summary
+
+
+def _existing(
+    key: str, rec_path: Path | None, pic_path: Path | None, lines: dict[str, dict[str, Any]]
+) -> dict[str, Any] | None:
+    """The stored record of this image with this key, if it and its picture exist."""
+    rec = lines.get(key)
+    if rec is None and rec_path is not None and rec_path.is_file():
+        try:
+            doc = json.loads(rec_path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+            return None
+        rec = doc if isinstance(doc, dict) and doc.get("key") == key else None
+    if rec is None:
+        return None
+    if pic_path is not None and rec.get("status") == "ok" and not pic_path.is_file():
+        return None
+    return rec

@@ -1,0 +1,191 @@
+"""``shapetree detect MODEL IMAGES...`` on scenes the project draws (known answers)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from shapetree import ShapeTreeError
+from shapetree.cli import main
+from shapetree.demo._scene import box_iou, detection_scene
+from shapetree.detection import DetectParams
+from shapetree.detection._photos import collect_images, detect_images, natural_key
+
+SCENE = dict(size=(150, 190), object_size=90.0, n_distractors=5)
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory) -> dict:
+    """Two scenes with a star, a bad file, an empty file, a 2x2 image and an SVG model."""
+    d = tmp_path_factory.mktemp("photos")
+    imgs = d / "imgs"
+    imgs.mkdir()
+    boxes = {}
+    for seed in (1, 2):
+        sc = detection_scene("star", seed=seed, **SCENE)
+        name = f"scene{seed}.png"
+        Image.fromarray(np.round(sc.image * 255).astype(np.uint8)).save(imgs / name)
+        boxes[name] = sc.box
+    (imgs / "broken.jpg").write_bytes(b"not an image")
+    (imgs / "empty.png").write_bytes(b"")
+    Image.new("L", (2, 2)).save(imgs / "tiny.png")
+    (imgs / "notes.txt").write_text("not an image extension: ignored in a folder")
+    pts = sc.model * 100.0
+    path = "M " + " L ".join(f"{x:.3f} {y:.3f}" for x, y in pts) + " Z"
+    svg = d / "star.svg"
+    svg.write_text(f'<svg xmlns="http://www.w3.org/2000/svg"><path d="{path}"/></svg>')
+    return {"dir": d, "imgs": imgs, "boxes": boxes, "model": svg}
+
+
+def test_collect_images_natural_order_and_errors(tmp_path: Path) -> None:
+    for name in ("img10.png", "img2.PNG", "img1.jpg", "readme.md"):
+        (tmp_path / name).write_bytes(b"")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "img3.png").write_bytes(b"")
+    got = [p.name for p in collect_images([tmp_path])]
+    assert got == ["img1.jpg", "img2.PNG", "img10.png"]
+    got = [p.name for p in collect_images([tmp_path], recursive=True)]
+    assert got == ["img1.jpg", "img2.PNG", "img10.png", "img3.png"]
+    # files as given (any extension, kept for their error), duplicates dropped
+    got = collect_images([tmp_path / "readme.md", tmp_path, tmp_path / "img1.jpg"])
+    assert [p.name for p in got] == ["readme.md", "img1.jpg", "img2.PNG", "img10.png"]
+    assert sorted(["a10", "a9", "A1"], key=natural_key) == ["A1", "a9", "a10"]
+    (tmp_path / "nothing").mkdir()
+    with pytest.raises(ShapeTreeError, match="holds no image"):
+        collect_images([tmp_path / "nothing"])
+    with pytest.raises(ShapeTreeError, match="no images given"):
+        collect_images([])
+
+
+def test_batch_records_pictures_errors_and_resume(photos: dict, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    images = collect_images([photos["imgs"]])
+    assert [p.name for p in images] == [
+        "broken.jpg",
+        "empty.png",
+        "scene1.png",
+        "scene2.png",
+        "tiny.png",
+    ]
+    lines: list[str] = []
+    s = detect_images(
+        photos["model"], images, out_dir=out, k=2, progress=False, report=lines.append
+    )
+    assert (s.done, s.skipped, s.failed) == (2, 0, 3)
+    assert len(lines) == 3 and all(line.startswith("shapetree: ") for line in lines)
+    assert "empty (0 bytes)" in " ".join(lines) and "at least 3x3" in " ".join(lines)
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(
+        ["broken.json", "empty.json", "scene1.json", "scene1.png", "scene2.json"]
+        + ["scene2.png", "tiny.json"]
+    )
+    for name, box in photos["boxes"].items():
+        rec = json.loads((out / name.replace(".png", ".json")).read_text())
+        assert rec["status"] == "ok" and rec["image_size"] == [190, 150]
+        assert 1 <= len(rec["detections"]) <= 2
+        best = rec["detections"][0]
+        assert box_iou(best["bbox"], box) >= 0.5  # the star is found
+        assert len(best["image_points"]) == len(rec["model_points"]) == 30
+        assert set(rec["timings"]) == {"edges", "contours", "tables", "stitch", "select"}
+    bad = json.loads((out / "broken.json").read_text())
+    assert bad["status"] == "error" and "cannot read image" in bad["error"]
+    # a second run skips everything (error records count as failed again, and say so)
+    before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    s2 = detect_images(
+        photos["model"], images, out_dir=out, k=2, progress=False, report=lines.append
+    )
+    assert (s2.done, s2.skipped, s2.failed) == (0, 5, 3)
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+    assert s2.records[2]["detections"] == s.records[2]["detections"]
+    # other parameters do not match the records: recomputed; a missing picture too
+    (out / "scene2.png").unlink()
+    s3 = detect_images(
+        photos["model"], images[2:4], out_dir=out, k=1, progress=False, report=lines.append
+    )
+    assert (s3.done, s3.skipped) == (2, 0)
+    s4 = detect_images(
+        photos["model"], images[2:4], out_dir=out, k=1, progress=False, report=lines.append
+    )
+    assert (s4.done, s4.skipped) == (0, 2)
+
+
+def test_jsonl_file_resumes_and_stdout(photos: dict, tmp_path: Path, capsys) -> None:
+    target = tmp_path / "d.jsonl"
+    imgs = [photos["imgs"] / "scene1.png", photos["imgs"] / "broken.jpg"]
+    s = detect_images(
+        photos["model"],
+        imgs,
+        out_dir=None,
+        jsonl=target,
+        progress=False,
+        report=lambda m: None,
+        k=1,
+    )
+    recs = [json.loads(line) for line in target.read_text().splitlines()]
+    assert [r["status"] for r in recs] == ["ok", "error"] and s.done == 1
+    s = detect_images(
+        photos["model"],
+        imgs,
+        out_dir=None,
+        jsonl=target,
+        progress=False,
+        report=lambda m: None,
+        k=1,
+    )
+    assert s.skipped == 2 and len(target.read_text().splitlines()) == 2
+    code = main(
+        ["detect", str(photos["model"]), str(imgs[0]), "--jsonl", "-", "--no-progress", "-k", "1"]
+    )
+    out, err = capsys.readouterr()
+    assert code == 0
+    (rec,) = [json.loads(line) for line in out.splitlines()]
+    assert rec["image"] == str(imgs[0]) and len(rec["detections"]) == 1
+    assert "1 image(s): 1 detected" in err
+
+
+def test_cli_batch_exit_status_and_messages(photos: dict, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "o"
+    args = ["detect", str(photos["model"]), str(photos["imgs"]), "-o", str(out), "-k", "1"]
+    code = main([*args, "--no-progress", "--no-pictures"])
+    stdout, err = capsys.readouterr()
+    assert code == 1  # some images failed; the batch went on
+    assert "5 image(s): 2 detected, 0 already done, 3 failed" in stdout
+    assert err.count("shapetree: ") == 3 and "Traceback" not in err
+    assert not list(out.glob("*.png"))
+    code = main([*args, "--no-progress", "--no-pictures"])
+    assert code == 1 and "0 detected, 5 already done, 3 failed" in capsys.readouterr()[0]
+    # a model that cannot be read, or a picture name for many images: one line, status 2
+    for bad in (
+        ["detect", str(tmp_path / "missing.svg"), str(photos["imgs"])],
+        ["detect", str(photos["model"]), str(photos["imgs"]), "-o", str(tmp_path / "x.png")],
+        ["detect", str(photos["model"]), str(photos["imgs"]), "--edges", "nosuch.tif"],
+        ["detect", str(photos["model"]), str(photos["imgs"]), "-p", "edge_method=sobel"],
+    ):
+        code = main([*bad, "--no-progress"])
+        _, err = capsys.readouterr()
+        assert code == 2 and err.startswith("shapetree: error: ") and err.count("\n") == 1, err
+
+
+def test_stored_edge_map_needs_one_image(photos: dict, tmp_path: Path) -> None:
+    img = photos["imgs"] / "scene1.png"
+    with pytest.raises(ShapeTreeError, match="fits one image"):
+        detect_images(photos["model"], [img, img], out_dir=tmp_path, edges=str(img))
+    with pytest.raises(ShapeTreeError, match="nowhere to write"):
+        detect_images(photos["model"], [img], out_dir=None)
+    s = detect_images(
+        photos["model"],
+        [img],
+        out_dir=tmp_path,
+        edges="gradient",
+        k=1,
+        pictures=False,
+        progress=False,
+        params=DetectParams(min_size=10.0),
+    )
+    rec = s.records[0]
+    assert rec["edges"] == {"method": "gradient"} and rec["params"]["edge_method"] == "gradient"
+    assert rec["params"]["min_size"] == 10.0
