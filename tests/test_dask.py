@@ -80,6 +80,14 @@ def test_square_matrix_bitwise_equal_and_progress(client, capsys) -> None:
     # default block size from the cluster's 2 threads: the threaded one with workers=2
     assert np.array_equal(distance_matrix(curves, scheduler=client, progress=False, **kw), ref)
     assert client.status == "running"  # a client given by the caller stays open
+    # the scheduler's address: connected to for the call, then disconnected
+    address = client.scheduler.address
+    assert address.startswith("tcp://127.0.0.1:")
+    assert np.array_equal(distance_matrix(curves, scheduler=address, progress=False, **kw), ref)
+    # one DaskScheduler shared by several calls
+    with _dask.open_scheduler(client) as sched:
+        assert np.array_equal(distance_matrix(curves, scheduler=sched, progress=False, **kw), ref)
+    assert client.status == "running"
 
 
 @pytest.mark.parametrize("symmetrize", ["min", "none", "reverse", "mean"])

@@ -471,14 +471,14 @@ def run_blocks(
                             f"too often ({exc}); see the workers' logs"
                         ) from exc
                     fut.release()
+                    on_block(r0, r1, arr)
+                    remaining.remove((r0, r1))
                     with lock:
                         finished.add((r0, r1))
                         done = reported.pop((r0, r1), 0)
-                    on_block(r0, r1, arr)
-                    remaining.remove((r0, r1))
-                    if bar is not None:
-                        bar.update((r1 - r0) * m - done)
-                        postfix()
+                        if bar is not None:
+                            bar.update((r1 - r0) * m - done)
+                    postfix()
             finally:
                 client.cancel(list(futures))
                 scattered.release()
