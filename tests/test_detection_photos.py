@@ -189,3 +189,14 @@ def test_stored_edge_map_needs_one_image(photos: dict, tmp_path: Path) -> None:
     rec = s.records[0]
     assert rec["edges"] == {"method": "gradient"} and rec["params"]["edge_method"] == "gradient"
     assert rec["params"]["min_size"] == 10.0
+
+
+def test_single_picture_form_uses_the_own_edges(photos: dict, tmp_path: Path, capsys) -> None:
+    img = photos["imgs"] / "scene1.png"
+    pic, rec = tmp_path / "one.png", tmp_path / "one.json"
+    code = main(["detect", str(photos["model"]), str(img), "-o", str(pic), "--json", str(rec)])
+    text = capsys.readouterr().out
+    assert code == 0 and "detection(s) of" in text and pic.is_file()
+    doc = json.loads(rec.read_text())
+    assert doc["edges"] == "own" and doc["params"]["edge_method"] == "own"
+    assert box_iou(doc["detections"][0]["bbox"], photos["boxes"]["scene1.png"]) >= 0.5

@@ -39,13 +39,14 @@ def detect_to_files(
         The image.
     edges_path : path-like or None
         Stored soft edge map (e.g. ETHZ ``*_edges.tif``); computed by
-        :func:`edge_map` when None.
+        :func:`edge_map` (method ``params.edge_method``, default ``"own"``) when None.
     out_png : path-like or None
         Fig. 5-style picture (image, edges, contours, detections; see
         :func:`shapetree.plotting.plot_detections`); the extension picks the format
         (``.png``, ``.pdf``, ``.svg``, ...).
     out_json : path-like or None
-        JSON with ``model``, ``image``, ``edges``, ``params``, ``timings`` and
+        JSON with ``model``, ``image``, ``edges`` (the map file or the edge method),
+        ``params``, ``timings`` and
         ``detections`` (each: score, cost, bbox, coverage, model_points,
         image_points, matched, gaps, pieces).  Both files are written
         atomically.
@@ -68,7 +69,7 @@ def detect_to_files(
         doc = {
             "model": str(model_path),
             "image": str(image_path),
-            "edges": str(edges_path) if edges_path is not None else "gradient",
+            "edges": str(edges_path) if edges_path is not None else run.params.edge_method,
             "image_size": [int(image.shape[1]), int(image.shape[0])],
             "params": run.params.as_dict(),
             "timings": run.timings,
