@@ -122,7 +122,7 @@ def _check_batched(config: MatchConfig) -> None:
             f"{what} is a single-pair matcher (a dynamic program over pairs of subcurves, "
             "not the shape-tree kernel the batched engine runs): use "
             "shapetree.matching.match(a, b, config) or shapetree.matching._api.pair_cost(a, "
-            "b, config) for each pair"
+            "b, config) for each pair ('shapetree match A B' on the command line)"
         )
 
 
