@@ -328,3 +328,30 @@ def test_cli_rebuild_from_a_database(capsys, folder: Path, tmp_path: Path):
 def test_cli_help(capsys, sub):
     code, out, _ = run(capsys, "index", sub, "--help")
     assert code == 0 and "examples:" in out and "shapetree index" in out
+
+
+def test_concurrent_adds_keep_every_shape(folder: Path, tmp_path: Path):
+    """Two ``index add`` processes on one database at once: the lock queues them, and
+    the database ends with the shapes of both (none silently dropped)."""
+    import subprocess
+    import sys
+
+    files = sorted(folder.iterdir())
+    db = tmp_path / "db.stidx"
+    base = [sys.executable, "-m", "shapetree.cli"]
+    opts = ["--n-points", "16", "--n-trees", "1", "--no-progress"]
+    subprocess.run([*base, "index", "build", str(files[0]), "-o", str(db), *opts], check=True)
+    halves = [files[1::2], files[2::2]]
+    procs = [
+        subprocess.Popen(
+            [*base, "index", "add", str(db), *map(str, h), "--no-progress"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        for h in halves
+    ]
+    for p in procs:
+        _, err = p.communicate(timeout=300)
+        assert p.returncode == 0, err.decode()
+    ix = ShapeIndex.load(db)
+    assert sorted(Path(n).name for n in ix.names) == sorted(f.name for f in files)

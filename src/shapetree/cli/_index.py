@@ -7,6 +7,8 @@ QUERY DB.stidx`` and ``shapetree distances DB.stidx`` read it in place of shape 
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -203,19 +205,41 @@ def cmd_build(args: argparse.Namespace) -> int:
     return 0
 
 
+@contextlib.contextmanager
+def _locked(db: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``DB.lock`` (POSIX ``flock``) while a database is read,
+    extended and rewritten, so that two ``index add`` runs on one database queue up
+    instead of one silently dropping the other's shapes. Where ``fcntl`` is missing
+    (Windows) no lock is taken."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    lock = db.with_name(db.name + ".lock")
+    with open(lock, "a") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
 def cmd_add(args: argparse.Namespace) -> int:
     """``shapetree index add``."""
     db = _check_output(args.db)
     progress = not args.no_progress
-    index = ShapeIndex.load(db)
+    ShapeIndex.load(db)  # refuse a bad database before reading the shapes
     curves, names = _read_sources(
         args.shapes, skip_bad=args.skip_bad, progress=progress, allow_index=False
     )
-    curves, names = _unique(curves, names, set(index.names))
-    before = len(index)
-    if curves:
-        index.add(curves, names, progress=progress)
-        index.save(db)
+    with _locked(db):
+        index = ShapeIndex.load(db)  # again, under the lock: another run may have added
+        curves, names = _unique(curves, names, set(index.names))
+        before = len(index)
+        if curves:
+            index.add(curves, names, progress=progress)
+            index.save(db)
     info(f"added {len(index) - before} shapes; {len(index)} in {db}")
     return 0
 
