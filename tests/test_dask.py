@@ -143,28 +143,6 @@ def _kill_after_first_block(client, cache: Path, box: dict, which: str) -> tuple
     return victims, n_at_kill
 
 
-@pytest.mark.parametrize("which", ["one", "both"])
-def test_worker_killed_mid_run_same_matrix(client, tmp_path: Path, which: str) -> None:
-    """A killed worker's task is rescheduled (``which="one"``); with every worker killed,
-    the scattered targets are lost too and the rest is resubmitted (``"both"``)."""
-    curves = _shapes(40, seed=5)
-    kw = dict(config="paper", n_points=32, mirror=True, block=1, symmetrize="min")
-    cache = tmp_path / "cache"
-    th, box = _run_in_thread(
-        distance_matrix, curves, scheduler=client, cache_dir=cache, progress=False, **kw
-    )
-    victims, n_at_kill = _kill_after_first_block(client, cache, box, which)
-    th.join(120)
-    assert not th.is_alive()
-    assert "error" not in box, box.get("error")
-    assert 1 <= n_at_kill < 40, "the run finished before a worker could be killed"
-    ref = distance_matrix(curves, workers=2, progress=False, **kw)
-    assert np.array_equal(box["result"], ref)
-    assert len(list(cache.glob("*/*.blk"))) == 40
-    client.wait_for_workers(2, timeout=60)  # the nannies restarted the killed workers
-    assert not set(client.run(os.getpid).values()) & set(victims)
-
-
 def test_resume_across_engines(client, tmp_path: Path) -> None:
     curves = _shapes(12, seed=3)
     kw = dict(CFG, block=2, progress=False)
@@ -198,6 +176,20 @@ def test_worker_with_other_code_is_refused() -> None:
     curves = [np.c_[np.cos(t), np.sin(t)] for t in [np.linspace(0, 6.2, 20)]]
     with pytest.raises(ShapeTreeError, match="other shapetree code"):
         _dask._block_task(curves, [curves], None, "0" * 64, (0, 1), None)
+
+
+def test_failing_task_is_named(client) -> None:
+    """A task that raises on the worker comes back, after its retries, as the
+    ShapeTreeError it raised, or as one naming its rows (here: no configuration)."""
+    from shapetree.matching import PRESETS
+
+    sched, _ = _dask.check_scheduler(client)
+    good = [np.c_[np.cos(t), np.sin(t)] for t in [np.linspace(0, 6, 20, endpoint=False)]]
+    kw = dict(key="0" * 64, on_block=lambda *a: None)
+    with pytest.raises(ShapeTreeError, match=r"task of rows 0:1 failed on a worker"):
+        _dask.run_blocks(sched, good, [good], None, [(0, 1)], **kw)
+    with pytest.raises(ShapeTreeError, match=r"got a 1-D array of shape \(7,\)"):
+        _dask.run_blocks(sched, good, [[np.zeros(7)]], PRESETS["paper"], [(0, 1)], **kw)
 
 
 @pytest.mark.parametrize(
@@ -266,3 +258,48 @@ def test_import_shapetree_does_not_import_dask() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
     )
     assert out.stdout.strip() == "[]"
+
+
+def _killed_run(client, tmp_path: Path, which: str) -> tuple[list[int], int]:
+    """All pairs of 30 curves in 30 blocks on ``client``, killing ``which`` workers after the
+    first block arrived: the matrix equals the threaded one, and every block is cached."""
+    curves = _shapes(30, seed=5)
+    kw = dict(config="paper", n_points=24, mirror=True, block=1, symmetrize="min")
+    cache = tmp_path / "cache"
+    th, box = _run_in_thread(
+        distance_matrix, curves, scheduler=client, cache_dir=cache, progress=False, **kw
+    )
+    victims, n_at_kill = _kill_after_first_block(client, cache, box, which)
+    th.join(120)
+    assert not th.is_alive()
+    assert "error" not in box, box.get("error")
+    assert 1 <= n_at_kill < 30, "the run finished before a worker could be killed"
+    ref = distance_matrix(curves, workers=2, progress=False, **kw)
+    assert np.array_equal(box["result"], ref)
+    assert len(list(cache.glob("*/*.blk"))) == 30
+    return victims, n_at_kill
+
+
+def test_worker_killed_mid_run_same_matrix(client, tmp_path: Path) -> None:
+    """One worker process SIGKILLed mid-run: its task is rescheduled on the other."""
+    victims, _ = _killed_run(client, tmp_path, "one")
+    client.wait_for_workers(2, timeout=120)  # the nanny restarted the killed worker
+    assert not set(client.run(os.getpid).values()) & set(victims)
+
+
+def test_every_worker_killed_mid_run_same_matrix(tmp_path: Path) -> None:
+    """Both worker processes SIGKILLed: the scattered targets are lost with them, and the
+    remaining blocks are resubmitted with a fresh scatter once the nannies restarted them
+    (a cluster of its own: a nanny may give up after this)."""
+    before = _children()
+    cluster = _dask.local_cluster(2)
+    c = distributed.Client(cluster, set_as_default=False)
+    try:
+        _killed_run(c, tmp_path, "both")
+    finally:
+        c.close()
+        cluster.close()
+    deadline = time.time() + 30
+    while _children() - before and time.time() < deadline:
+        time.sleep(0.1)
+    assert not _children() - before, "the LocalCluster left processes behind"

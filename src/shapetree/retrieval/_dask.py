@@ -178,14 +178,14 @@ class DaskScheduler:
 
     def n_threads(self) -> int:
         """Worker threads of the cluster now (at least 1); connects if needed."""
-        info = self.client().scheduler_info(n_workers=-1)
+        info = self.client().scheduler_info()
         return max(1, sum(int(w.get("nthreads", 1)) for w in info.get("workers", {}).values()))
 
     def n_workers(self) -> int:
         """Workers of the cluster now (as the client last heard)."""
         if self._client is None:
             return 0
-        return len(self._client.scheduler_info(n_workers=-1).get("workers", {}))
+        return len(self._client.scheduler_info().get("workers", {}))
 
     def _close_cluster(self) -> None:
         if self._owns_cluster and self._cluster is not None:
@@ -469,6 +469,13 @@ def run_blocks(
                         raise ShapeTreeError(
                             f"the Dask task of rows {r0}:{r1} was running on workers that died "
                             f"too often ({exc}); see the workers' logs"
+                        ) from exc
+                    except ShapeTreeError:
+                        raise
+                    except Exception as exc:  # e.g. shapetree missing on a remote worker
+                        raise ShapeTreeError(
+                            f"the Dask task of rows {r0}:{r1} failed on a worker after "
+                            f"{TASK_RETRIES} retries: {type(exc).__name__}: {exc}"
                         ) from exc
                     fut.release()
                     on_block(r0, r1, arr)
