@@ -6,6 +6,7 @@ the block cache across both engines, and the errors of a bad ``scheduler=``.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -303,3 +304,54 @@ def test_every_worker_killed_mid_run_same_matrix(tmp_path: Path) -> None:
     while _children() - before and time.time() < deadline:
         time.sleep(0.1)
     assert not _children() - before, "the LocalCluster left processes behind"
+
+
+_CLIENT = """
+import json, os, sys
+sys.path.insert(0, {tests!r})
+from test_dask import _shapes
+from shapetree.retrieval import distance_matrix
+from shapetree.retrieval._dask import open_scheduler
+if __name__ == "__main__":
+    with open_scheduler("local:2") as sched:
+        pids = sorted(sched.client().run(os.getpid).values())
+        open({pids!r}, "w").write(json.dumps(pids))
+        distance_matrix(_shapes(30, seed=6), config="paper", n_points=24, block=1,
+                        scheduler=sched, cache_dir={cache!r}, progress=False)
+"""
+
+
+def test_client_killed_mid_run_resumes(tmp_path: Path) -> None:
+    """The client process (with its ``local:2`` cluster) SIGKILLed mid-run: its workers
+    go with it, and a threaded run resumes from the blocks it wrote."""
+    cache, pids_file = tmp_path / "cache", tmp_path / "pids.json"
+    script = tmp_path / "client.py"
+    script.write_text(
+        _CLIENT.format(tests=str(Path(__file__).parent), pids=str(pids_file), cache=str(cache))
+    )
+    proc = subprocess.Popen([sys.executable, str(script)])
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and proc.poll() is None:
+            if len(list(cache.glob("*/*.blk"))) >= 2:
+                break
+            time.sleep(0.005)
+        assert proc.poll() is None, "the client finished before it could be killed"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    n_written = len(list(cache.glob("*/*.blk")))
+    assert 2 <= n_written < 30
+    workers = json.loads(pids_file.read_text())
+    deadline = time.time() + 30
+    while any(psutil.pid_exists(p) for p in workers) and time.time() < deadline:
+        time.sleep(0.1)
+    assert not any(psutil.pid_exists(p) for p in workers), "workers outlived their client"
+    kw = dict(config="paper", n_points=24, block=1, progress=False, workers=2)
+    stats: dict = {}
+    resumed = directed_costs(_shapes(30, seed=6), cache_dir=cache, stats=stats, **kw)
+    assert stats["blocks_cached"] >= n_written and stats["pairs_computed"] < 30 * 30
+    assert np.array_equal(resumed, directed_costs(_shapes(30, seed=6), **kw))
