@@ -84,10 +84,14 @@ from shapetree.geometry._dif import (
     hyperbolic_den,
     hyperbolic_ratio,
     lagrange_form,
-    weighted_dif_kind,
 )
 from shapetree.matching._batch import ModelStack
-from shapetree.matching._kernels import SENTINEL, closed_root_min, finite_or_inf
+from shapetree.matching._kernels import (
+    SENTINEL,
+    closed_root_min,
+    degenerate_split,
+    finite_or_inf,
+)
 from shapetree.matching._match import MatchParams, _buffers, _check_pair
 from shapetree.matching._prepare import Model, Target, TreeData
 
@@ -234,37 +238,44 @@ def fill_bound_tables(
                     best[s] = SENTINEL
                 k0 = max(1, lmin[lt], length - lmax[rt])
                 k1 = min(length - 1, lmax[lt], length - lmin[rt])
-                for k in range(k0, k1 + 1):
-                    lrow = tab[lt, k]
-                    rrow = tab[rt, length - k, k : k + ns]
-                    z1 = tri[length, k, 0]
-                    zr = tri[length, k, 1]
-                    zi = tri[length, k, 2]
-                    if deg is not None:
-                        if deg[length, k]:
-                            lvt = lam[v]
-                            for s in range(ns):
-                                cd = (
-                                    lrow[s]
-                                    + rrow[s]
-                                    + weighted_dif_kind(lvt, q1, qr, qi, z1[s], zr[s], zi[s], hyper)
+                # the dif chosen outside the split loop, as in the kernel (vectorisation)
+                if hyper:
+                    lvh = lam[v]
+                    for k in range(k0, k1 + 1):
+                        lrow = tab[lt, k]
+                        rrow = tab[rt, length - k, k : k + ns]
+                        z1 = tri[length, k, 0]
+                        zr = tri[length, k, 1]
+                        zi = tri[length, k, 2]
+                        if deg is not None:
+                            if deg[length, k]:
+                                degenerate_split(
+                                    best, lrow, rrow, lvh, q1, qr, qi, z1, zr, zi, ns, True
                                 )
-                                if cd < best[s]:
-                                    best[s] = cd
-                            continue
-                    if hyper:
-                        lvh = lam[v]
+                                continue
                         for s in range(ns):
                             num = lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
                             den = hyperbolic_den(q1, qr, qi, z1[s], zr[s], zi[s])
                             c = lrow[s] + rrow[s] + lvh * hyperbolic_ratio(num, den)
                             b = best[s]
                             best[s] = c if c < b else b
-                        continue
-                    for s in range(ns):
-                        c = lrow[s] + rrow[s] + lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
-                        b = best[s]
-                        best[s] = c if c < b else b
+                else:
+                    for k in range(k0, k1 + 1):
+                        lrow = tab[lt, k]
+                        rrow = tab[rt, length - k, k : k + ns]
+                        z1 = tri[length, k, 0]
+                        zr = tri[length, k, 1]
+                        zi = tri[length, k, 2]
+                        if deg is not None:
+                            if deg[length, k]:
+                                degenerate_split(
+                                    best, lrow, rrow, lam[v], q1, qr, qi, z1, zr, zi, ns, False
+                                )
+                                continue
+                        for s in range(ns):
+                            c = lrow[s] + rrow[s] + lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
+                            b = best[s]
+                            best[s] = c if c < b else b
             if occl:
                 brow = blen[length]
                 for s in range(ns):
