@@ -129,7 +129,17 @@ def main() -> None:
     gts: dict[str, dict[str, np.ndarray]] = {c: {} for c in ETHZ_CLASSES}
     from tqdm import tqdm
 
-    for folder, stem in tqdm(imgs, desc="evidence", unit="img"):
+    store = Path(f"/tmp/ethz_verify_{args.edges}_{cache.name}.json")
+    if store.is_file():  # the evidence of this cache, computed before
+        saved = json.loads(store.read_text())
+        cand, gts = (
+            saved["cand"],
+            {c: {k: np.asarray(v) for k, v in g.items()} for c, g in saved["gts"].items()},
+        )
+        imgs_todo = []
+    else:
+        imgs_todo = imgs
+    for folder, stem in tqdm(imgs_todo, desc="evidence", unit="img"):
         key = f"{folder}/{stem}"
         if args.edges == "pb":
             e = load_edges(root / folder / f"{stem}_edges.tif")
@@ -148,6 +158,9 @@ def main() -> None:
                 except ValueError:  # a degenerate placed outline
                     shape = 1.0
                 cand[cls].append((key, d["score"], np.log(sup), clut, shape, d["bbox"]))
+    if imgs_todo:
+        gts_json = {c: {k: v.tolist() for k, v in g.items()} for c, g in gts.items()}
+        store.write_text(json.dumps({"cand": cand, "gts": gts_json}))
     table: dict = {}
     for a in A_GRID:
         for b in B_GRID:
@@ -181,13 +194,15 @@ def main() -> None:
         }
     loco_20 = round(float(np.mean([v["dr_20"] for v in loco.values()])), 4)
     loco_50 = round(float(np.mean([v["dr_50"] for v in loco.values()])), 4)
-    plain = table[(0.0, 0.0)]
-    print(f"edges {args.edges}: mean DR at 0.4 FPPI (20% rule); rows a (support), columns b")
-    print("        " + "".join(f"{b:>8.3f}" for b in B_GRID))
-    for a in A_GRID:
-        print(
-            f"{a:>6.3f}  " + "".join(f"{table[(a, b)]['overlap_20']['mean']:>8.3f}" for b in B_GRID)
-        )
+    plain = table[(0.0, 0.0, 0.0)]
+    for c in C_GRID:
+        print(f"edges {args.edges}, c = {c}: mean DR at 0.4 FPPI (20% rule); rows a, columns b")
+        print("        " + "".join(f"{b:>8.3f}" for b in B_GRID))
+        for a in A_GRID:
+            vals = "".join(f"{table[(a, b, c)]['overlap_20']['mean']:>8.3f}" for b in B_GRID)
+            print(f"{a:>6.3f}  " + vals)
+    top = max(table, key=lambda k: table[k]["overlap_20"]["mean"])
+    print("best on all five classes (optimistic, not the headline):", top, json.dumps(table[top]))
     print("without the terms:", json.dumps(plain))
     print("leave one class out:", json.dumps(loco))
     print(f"leave-one-class-out mean DR@0.4 FPPI: 20% rule {loco_20:.3f}, PASCAL {loco_50:.3f}")
