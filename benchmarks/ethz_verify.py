@@ -30,6 +30,7 @@ import argparse
 import json
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -129,7 +130,7 @@ def main() -> None:
     gts: dict[str, dict[str, np.ndarray]] = {c: {} for c in ETHZ_CLASSES}
     from tqdm import tqdm
 
-    store = Path(f"/tmp/ethz_verify_{args.edges}_{cache.name}.json")
+    store = Path(tempfile.gettempdir()) / f"ethz_verify_{args.edges}_{cache.name}.json"
     if store.is_file():  # the evidence of this cache, computed before
         saved = json.loads(store.read_text())
         cand, gts = (
