@@ -299,6 +299,7 @@ def test_demo_ranks_deformed_copy_first_and_writes_pictures(capsys, tmp_path):
         "demo_occlusion.png",
         "demo_tree.png",
         "demo_deform.png",
+        "demo_detection.png",
     }
     assert {p.name for p in out.iterdir()} == names
     for name in names:
