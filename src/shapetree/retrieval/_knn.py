@@ -447,8 +447,8 @@ def knn(
         sub-folder named by a SHA-256 of the code, the configuration, ``k`` and the
         sampled curves): a killed run resumes where it stopped.
     block : int, optional
-        Queries per block (the unit of work, caching and resumption); default
-        ``ceil(n_queries / workers)``, at most 32.
+        Queries per block (the unit of work, caching and resumption); default: the
+        queries split into a multiple of ``workers`` blocks of equal size, at most 32 each.
     **options
         :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
 
@@ -471,7 +471,13 @@ def knn(
         raise ShapeTreeError(f"knn needs at least one query and one database curve, got {nq}, {nd}")
     k = min(k, nd)
     step = nd if batch is None else _check_int("batch", batch, 1)
-    block = max(1, min(32, -(-nq // workers))) if block is None else _check_int("block", block, 1)
+    if block is None:
+        # a multiple of `workers` blocks of equal size, at most 32 queries each, so that
+        # no thread is left alone with the last block
+        n_blocks = workers * -(-nq // (workers * 32))
+        block = -(-nq // n_blocks)
+    else:
+        block = _check_int("block", block, 1)
     pairs = _Pairs(queries, database, cfg, keep_from, keep_top)
     ranges = [(r0, min(nq, r0 + block)) for r0 in range(0, nq, block)]
     idx = np.empty((nq, k), dtype=np.int64)
