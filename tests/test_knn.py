@@ -167,8 +167,7 @@ def test_evaluate_with_neighbours_equals_exhaustive(name, params):
     assert pruned["pairs_computed"] == nb["full_matchings"] <= full["pairs_computed"]
     if name == "swedish_leaf":
         assert nb["rows_completed"] > 0  # K=2: some test shapes had no training neighbour
-    if name != "swedish_leaf":  # (any K >= 1 serves Swedish leaf)
-        with pytest.raises(ShapeTreeError, match=f"needs each shape's {need} nearest"):
-            evaluate(name, name, neighbours=need - 1, **kw)
+    with pytest.raises(ShapeTreeError, match=f"needs each shape's {need} nearest"):
+        evaluate(name, name, neighbours=need - 1, **kw)
     with pytest.raises(ShapeTreeError, match="rerank"):
         evaluate(name, name, neighbours=need, rerank="tpg", **kw)
