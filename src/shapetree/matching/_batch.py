@@ -92,6 +92,22 @@ class ModelStack:
         )
         self._n_tables = tds[0].n_tables
 
+    def _table_workspace(self, target: Target) -> np.ndarray:
+        """Check that ``target`` fits this stack (dif, size, precision) and return this
+        thread's table workspace for it."""
+        _check_pair(self.models[0], target, self.params)
+        name = type(self).__name__
+        if target.n_points != self.m:
+            raise ShapeTreeError(
+                f"this {name} was built for targets of {self.m} points, got {target.n_points}"
+            )
+        if target.tri.dtype != self.dtype:
+            raise ShapeTreeError(
+                f"this {name} runs in {self.dtype}; prepare the target with that dtype "
+                f"(got {target.tri.dtype})"
+            )
+        return _buffers(self._n_tables, self.m, self.dtype)
+
     def costs(self, target: Target) -> np.ndarray:
         """ψ(model_i, target) for every model (minimum over its shape-trees).
 
@@ -104,17 +120,7 @@ class ModelStack:
         -------
         ndarray, shape (n_models,)
         """
-        _check_pair(self.models[0], target, self.params)
-        if target.n_points != self.m:
-            raise ShapeTreeError(
-                f"this ModelStack was built for targets of {self.m} points, got {target.n_points}"
-            )
-        if target.tri.dtype != self.dtype:
-            raise ShapeTreeError(
-                f"this ModelStack runs in {self.dtype}; prepare the target with that dtype "
-                f"(got {target.tri.dtype})"
-            )
-        tab = _buffers(self._n_tables, self.m, self.dtype)
+        tab = self._table_workspace(target)
         out = np.empty(self.n_models * self.n_trees, dtype=self.dtype)
         closed_costs(
             *self._arrays,

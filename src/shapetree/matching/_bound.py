@@ -78,7 +78,6 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from shapetree._errors import ShapeTreeError
 from shapetree.geometry._dif import (
     FASTMATH,
     hyperbolic_den,
@@ -92,7 +91,7 @@ from shapetree.matching._kernels import (
     degenerate_split,
     finite_or_inf,
 )
-from shapetree.matching._match import MatchParams, _buffers, _check_pair
+from shapetree.matching._match import MatchParams
 from shapetree.matching._prepare import Model, Target, TreeData
 
 __all__ = ["BOUND_SLACK", "BoundStack", "keep_mask", "table_marks"]
@@ -401,14 +400,7 @@ class BoundStack(ModelStack):
     def bounds(self, target: Target) -> np.ndarray:
         """A lower bound of ψ(model_i, target) for every model (minimum over its trees),
         lowered by :data:`BOUND_SLACK`; shape (n_models,), float64."""
-        _check_pair(self.models[0], target, self.params)
-        if target.n_points != self.m:
-            raise ShapeTreeError(
-                f"this BoundStack was built for targets of {self.m} points, got {target.n_points}"
-            )
-        if target.tri.dtype != self.dtype:
-            raise ShapeTreeError(f"this BoundStack runs in {self.dtype}; got {target.tri.dtype}")
-        tab = _buffers(self._n_tables, self.m, self.dtype)
+        tab = self._table_workspace(target)
         out = np.empty(self.n_models * self.n_trees, dtype=self.dtype)
         closed_bounds(
             *self._arrays,
