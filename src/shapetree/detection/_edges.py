@@ -31,11 +31,14 @@ from scipy import ndimage
 
 from shapetree._errors import ImageError
 
-__all__ = ["EDGE_METHODS", "edge_map", "load_edges", "load_image"]
+__all__ = ["EDGE_METHODS", "WEIGHTED_METHODS", "edge_map", "load_edges", "load_image"]
 
 #: Edge detectors of :func:`edge_map`: ``"own"`` (Pb's cues, :mod:`._boundary`, the
-#: default) and ``"gradient"`` (the multi-scale Lab gradient, kept for comparison).
-EDGE_METHODS = ("own", "gradient")
+#: default), ``"gradient"`` (the multi-scale Lab gradient, kept for comparison) and
+#: ``"pidinet"`` (a learned detector, :mod:`._pidinet`, whose weights the user points to).
+EDGE_METHODS = ("own", "gradient", "pidinet")
+#: The methods that need a weights file (``weights=`` / ``DetectParams.edge_weights``).
+WEIGHTED_METHODS = ("pidinet",)
 
 
 def load_image(path: str | os.PathLike[str]) -> NDArray[np.float64]:
@@ -120,8 +123,8 @@ def load_edges(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     return np.clip(out, 0.0, 1.0)
 
 
-def _as_channels(image: ArrayLike) -> NDArray[np.float64]:
-    """Convert an image to float Lab channels, shape (H, W, C)."""
+def _as_unit(image: ArrayLike) -> NDArray[np.float64]:
+    """Validate an image and scale it to ``[0, 1]``: (H, W) or (H, W, 1|3), alpha dropped."""
     arr = np.asarray(image)
     if arr.ndim not in (2, 3) or arr.size == 0 or min(arr.shape[:2]) < 3:
         raise ImageError(
@@ -139,14 +142,20 @@ def _as_channels(image: ArrayLike) -> NDArray[np.float64]:
         if arr.max(initial=0.0) > 1.0 + 1e-9:
             arr = arr / 255.0
     arr = np.clip(arr, 0.0, 1.0)
+    if arr.ndim == 3 and arr.shape[2] == 4:
+        arr = arr[:, :, :3]
+    if arr.ndim == 3 and arr.shape[2] not in (1, 3):
+        raise ImageError(f"image must have 1, 3 or 4 channels, got {arr.shape[2]}")
+    return arr
+
+
+def _as_channels(image: ArrayLike) -> NDArray[np.float64]:
+    """Convert an image to float Lab channels, shape (H, W, C)."""
+    arr = _as_unit(image)
     if arr.ndim == 2:
         return (arr * 100.0)[:, :, None]
-    if arr.shape[2] == 4:
-        arr = arr[:, :, :3]
     if arr.shape[2] == 1:
         return arr * 100.0
-    if arr.shape[2] != 3:
-        raise ImageError(f"image must have 1, 3 or 4 channels, got {arr.shape[2]}")
     from skimage.color import rgb2lab
 
     return rgb2lab(arr)
@@ -177,6 +186,7 @@ def edge_map(
     thin: bool = True,
     norm_percentile: float = 99.0,
     floor: float = 0.02,
+    weights: str | os.PathLike[str] | None = None,
 ) -> NDArray[np.float64]:
     """Soft edge strength map of an image: Pb-style boundary cues, or a Lab gradient.
 
@@ -186,14 +196,17 @@ def edge_map(
         Greyscale or RGB(A) image; integer types are scaled by 255 (or 65535),
         floats are taken in ``[0, 1]`` (or ``[0, 255]`` when the maximum
         exceeds 1).
-    method : {"own", "gradient"}
+    method : {"own", "gradient", "pidinet"}
         ``"own"`` (default): the project's boundary detector on Pb's cues,
         χ² differences of brightness, colour and texton histograms between
         half-discs at every orientation and two scales, combined with fixed
         weights and thinned (see :mod:`shapetree.detection._boundary`); it
         tells texture (water ripples, foliage) from object boundaries.
         ``"gradient"``: the multi-scale Lab gradient magnitude below (fast,
-        but texture gives strong edges).  For ETHZ the shipped Pb maps are
+        but texture gives strong edges).  ``"pidinet"``: the learned PiDiNet
+        detector (Su et al., ICCV 2021) run with NumPy from the weights file
+        ``weights`` points to, thinned and put on the Pb scale (see
+        :mod:`shapetree.detection._pidinet`).  For ETHZ the shipped Pb maps are
         read with :func:`load_edges`.
     sigmas : tuple of float
         ``"gradient"`` only: Gaussian scales in pixels (default 1, 2, 4).
@@ -208,6 +221,10 @@ def edge_map(
         ``"own"`` map has a fixed scale instead (no per-image normalisation).
     floor : float
         Normalised values below this are set to 0 (default 0.02).
+    weights : path-like or None
+        ``"pidinet"`` only (required there): a ``table5_*.npz`` PiDiNet weights file.
+        The weights are the authors' (``hellozhuo/pidinet``), for research use only,
+        and not shipped with shapetree.
 
     Returns
     -------
@@ -219,7 +236,8 @@ def edge_map(
     ImageError
         If the image has a bad shape or non-finite values.
     ShapeTreeError
-        If ``method`` is unknown or ``sigmas`` is empty / non-positive.
+        If ``method`` is unknown, ``sigmas`` is empty / non-positive, or the
+        ``"pidinet"`` weights are missing, unreadable or not PiDiNet's.
     """
     from shapetree._errors import ShapeTreeError
 
@@ -227,6 +245,12 @@ def edge_map(
         raise ShapeTreeError(f"unknown edge method {method!r}; choose one of {EDGE_METHODS}")
     if len(sigmas) == 0 or any(not (s > 0) for s in sigmas):
         raise ShapeTreeError(f"sigmas must be positive, got {sigmas!r}")
+    if method == "pidinet":
+        from ._pidinet import pidinet_edges
+
+        return pidinet_edges(image, weights, thin=thin, floor=floor)
+    if weights is not None:
+        raise ShapeTreeError(f"weights= is for edge method 'pidinet', not {method!r}")
     chans = _as_channels(image)
     if method == "own":
         from ._boundary import boundary_map
