@@ -4,6 +4,9 @@ Usage::
 
     python3 benchmarks/eval_ethz.py [--workers 2] [--classes swans bottles] [--k 5]
     python3 benchmarks/eval_ethz.py --edges own --workers 1   # -> results/ethz_own.json
+    python3 benchmarks/eval_ethz.py --edges pidinet \
+        --edge-weights ../shared/models/pidinet/table5_pidinet.npz  # -> results/ethz_pidinet.json
+    python3 benchmarks/eval_ethz.py --calibrate-pidinet --edge-weights PATH  # P_KNOTS
 
 Writes ``benchmarks/results/ethz.json`` (DR at 0.3 / 0.4 FPPI under the 20% and
 50% IoU rules, per class and mean; seconds per image; all parameters), the
@@ -11,7 +14,17 @@ DR/FPPI plot and the swan / bottle galleries next to it.  Per-image detections
 are cached under ``$SHAPETREE_CACHE/ethz_detect/`` (default
 ``~/.cache/shapetree/ethz_detect/``; ``--cache-dir`` to change), keyed by the
 parameters and the code fingerprint, so a killed run resumes where it stopped
-and an edited package never reuses stale detections.
+and an edited package never reuses stale detections.  A computed edge map (own,
+pidinet) is made once per image and cached under ``<cache>/edges/``; its time is
+reported separately (``edge_map_seconds_median``) and, shared by the five models, in
+the ``edges`` stage.
+
+``--calibrate-pidinet`` sets the fixed map of the thinned PiDiNet probability to the Pb
+scale (``shapetree.detection._pidinet.P_KNOTS``): on the first two images of each class
+(file order; no ground-truth boxes) the median share of pixels above 0.05, 0.15, 0.3
+and 0.5 of the Pb maps is matched by quantiles of the thinned probability, which become
+the knots of a piecewise-linear map (it also prints the least-squares line through them,
+which fits badly).
 """
 
 from __future__ import annotations
@@ -40,11 +53,26 @@ def main() -> None:
     ap.add_argument("--k", type=int, default=5)
     ap.add_argument(
         "--edges",
-        choices=("pb", "own"),
+        choices=("pb", "own", "pidinet"),
         default="pb",
-        help="pb: the shipped Pb maps; own: the project's edge map of each image",
+        help="pb: the shipped Pb maps; own: the project's edge map of each image; pidinet: "
+        "the learned PiDiNet map (--edge-weights)",
     )
-    ap.add_argument("--json", default=None, help="default results/ethz.json (ethz_own.json)")
+    ap.add_argument(
+        "--edge-weights",
+        default=None,
+        help="--edges pidinet: PiDiNet weights (.npz; research use only, never committed)",
+    )
+    ap.add_argument(
+        "--calibrate-pidinet",
+        action="store_true",
+        help="print the Pb-matching scale of the thinned PiDiNet map (--edge-weights) and exit",
+    )
+    ap.add_argument(
+        "--json",
+        default=None,
+        help="default results/ethz.json (ethz_own.json, ethz_pidinet.json)",
+    )
     ap.add_argument(
         "--out-dir",
         default=None,
@@ -56,9 +84,13 @@ def main() -> None:
         help="default: $SHAPETREE_CACHE/ethz_detect (else ~/.cache/shapetree/ethz_detect)",
     )
     args = ap.parse_args()
+    if args.calibrate_pidinet:
+        calibrate_pidinet(args.data, args.edge_weights, args.cache_dir)
+        return
     results = REPO / "benchmarks" / "results"
     if args.json is None:
-        args.json = str(results / ("ethz.json" if args.edges == "pb" else "ethz_own.json"))
+        name = {"pb": "ethz.json", "own": "ethz_own.json", "pidinet": "ethz_pidinet.json"}
+        args.json = str(results / name[args.edges])
     if args.out_dir is None and args.edges == "pb":
         args.out_dir = str(results)
     res = evaluate_ethz(
@@ -71,6 +103,7 @@ def main() -> None:
         k=args.k,
         workers=args.workers,
         edges=args.edges,
+        edge_weights=args.edge_weights,
     )
     res["machine"] = machine()
     res["command"] = "python3 benchmarks/eval_ethz.py " + " ".join(sys.argv[1:])
@@ -87,6 +120,90 @@ def main() -> None:
         "breakdown (median s):",
         json.dumps(res["seconds_breakdown_median"]),
     )
+    if "edge_map_seconds_median" in res:
+        print(
+            f"edge map once per image: median {res['edge_map_seconds_median']:.3f} s, "
+            f"mean {res['edge_map_seconds_mean']:.3f} s"
+        )
+
+
+#: Thresholds whose shares of pixels the calibration matches (the tracer's range).
+CAL_THRESHOLDS = (0.05, 0.15, 0.3, 0.5)
+
+
+def calibration_images(root: Path, per_class: int = 2) -> list[tuple[str, str]]:
+    """The first ``per_class`` images of each class in file order."""
+    from shapetree.detection._ethz_eval import _images
+
+    imgs = _images(root)
+    out = []
+    for folder in sorted({f for f, _ in imgs}):
+        out += [x for x in imgs if x[0] == folder][:per_class]
+    return out
+
+
+def calibrate_pidinet(data: str, weights: str | None, cache_dir: str | None) -> dict:
+    """Fit ``P_OFFSET`` / ``P_RANGE`` of the thinned PiDiNet map to the Pb maps' shares."""
+    import numpy as np
+
+    from shapetree.detection import load_edges, load_image
+    from shapetree.detection._ethz_eval import (
+        _load_npz,
+        _save_npz,
+        default_cache_dir,
+        edge_cache_dirs,
+        ethz_root,
+    )
+    from shapetree.detection._pidinet import fused_probability, load_pidinet, thin_ridges
+
+    root = ethz_root(data)
+    net = load_pidinet(weights)
+    base = Path(cache_dir).expanduser() if cache_dir else default_cache_dir()
+    _, raw = edge_cache_dirs(base, "pidinet", net.sha256)
+    imgs = calibration_images(root)
+    pb_share, thinned = [], []
+    for f, s in imgs:
+        got = _load_npz(raw / f"{f}__{s}.npz", ["prob"])
+        if got is None:
+            prob = fused_probability(load_image(root / f / f"{s}.jpg"), weights)
+            _save_npz(raw / f"{f}__{s}.npz", prob=prob, seconds=np.float64(0.0))
+        else:
+            prob = got["prob"]
+        thinned.append(thin_ridges(prob))
+        pb = load_edges(root / f / f"{s}_edges.tif")
+        pb_share.append([float((pb > t).mean()) for t in CAL_THRESHOLDS])
+    target = np.median(np.array(pb_share), axis=0)
+    quantiles = []
+    for j, _t in enumerate(CAL_THRESHOLDS):
+        lo, hi = 0.0, 1.0
+        for _ in range(50):  # the value q whose median share above it is the Pb share
+            q = 0.5 * (lo + hi)
+            share = float(np.median([(e > q).mean() for e in thinned]))
+            lo, hi = (q, hi) if share > target[j] else (lo, q)
+        quantiles.append(0.5 * (lo + hi))
+    slope, offset = np.polyfit(np.array(CAL_THRESHOLDS), np.array(quantiles), 1)
+    line = [
+        float(np.median([(np.clip((e - offset) / slope, 0, 1) > t).mean() for e in thinned]))
+        for t in CAL_THRESHOLDS
+    ]
+    knots = [(0.0, 0.0), *zip(quantiles, CAL_THRESHOLDS, strict=True), (1.0, 1.0)]
+    xs, ys = zip(*knots, strict=True)
+    fitted = [
+        float(np.median([(np.interp(e, xs, ys) > t).mean() for e in thinned]))
+        for t in CAL_THRESHOLDS
+    ]
+    doc = {
+        "images": [f"{f}/{s}" for f, s in imgs],
+        "weights": net.path.name,
+        "pb_share_median": [round(float(v), 5) for v in target],
+        "quantiles": [round(q, 4) for q in quantiles],
+        "P_KNOTS": [(round(x, 4), y) for x, y in knots],
+        "share_after_knots": [round(v, 5) for v in fitted],
+        "least_squares_line": {"offset": round(float(offset), 4), "range": round(float(slope), 4)},
+        "share_after_line": [round(v, 5) for v in line],
+    }
+    print(json.dumps(doc, indent=2))
+    return doc
 
 
 if __name__ == "__main__":

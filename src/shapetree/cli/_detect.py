@@ -20,6 +20,7 @@ examples:
   shapetree detect models/Swans.tif big.jpg -o swan.png --json swan.json   # one picture
   shapetree detect mug.png kitchen.jpg --edges kitchen_edges.tif -k 3
   shapetree detect bottle.png shelf.jpg --param tau=16 --param gap_cost=0.4
+  shapetree detect swan.svg photos/ --edges pidinet --edge-weights table5_pidinet.npz
 
 MODEL is a silhouette or outline drawing (image), an SVG file (its first <path>, or a
 <polygon>/<polyline>: the usual way to draw a model) or a point file (.csv/.txt/.npy/
@@ -33,9 +34,12 @@ model, parameters, edge source and image file is skipped (--force recomputes). A
 goes on; the exit status is then 1.
 
 --edges: own (default) is the project's boundary detector on Pb's cues (brightness, colour
-and texture half-disc differences); gradient the plain colour gradient; a file is a stored
-soft edge map (one image only). With one image and -o NAME.png (or --json FILE) the old
-single-picture form is used.
+and texture half-disc differences); gradient the plain colour gradient; pidinet the learned
+PiDiNet detector (Su et al., ICCV 2021), run with NumPy from the weights file given with
+--edge-weights (a table5_*.npz copy of the authors' BSDS500 checkpoints, hellozhuo/pidinet:
+research use only, not shipped with shapetree); a file is a stored soft edge map (one image
+only). With one image and -o NAME.png (or --json FILE) the old single-picture form is
+used.
 """
 
 _PICTURE_EXT = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".eps", ".ps", ".webp")
@@ -76,7 +80,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--edges",
         metavar="SOURCE",
         default="own",
-        help="own (Pb-style cues), gradient, or a stored soft edge map file (one image)",
+        help="own (Pb-style cues), gradient, pidinet (learned; needs --edge-weights), or a "
+        "stored soft edge map file (one image)",
+    )
+    p.add_argument(
+        "--edge-weights",
+        metavar="PATH",
+        default=None,
+        help="--edges pidinet: the PiDiNet weights (.npz; research use only, not shipped)",
     )
     p.add_argument("-k", type=positive_int, default=5, metavar="K", help="detections per image")
     p.add_argument(
@@ -156,6 +167,11 @@ def _cmd_single(args: argparse.Namespace, params: dict[str, Any]) -> int:
 def cmd_detect(args: argparse.Namespace) -> int:
     """``shapetree detect``."""
     params = dict(args.param)
+    if args.edge_weights is not None:
+        params["edge_weights"] = args.edge_weights
+        method, _ = _method_or_file(args.edges)
+        if method is not None:
+            params["edge_method"] = method
     if _single_picture_form(args):
         return _cmd_single(args, params)
     from shapetree.detection import DetectParams

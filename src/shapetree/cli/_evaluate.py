@@ -142,10 +142,18 @@ def add_parsers(sub: argparse._SubParsersAction, *, full: bool = False) -> None:
     )
     g.add_argument(
         "--edges",
-        choices=("pb", "own"),
+        choices=("pb", "own", "pidinet"),
         default="pb",
         help="edge source: pb = the Berkeley Pb maps shipped with the dataset, own = the "
-        "project's own edge map computed from each image",
+        "project's own edge map computed from each image, pidinet = the learned PiDiNet "
+        "map (needs --edge-weights); a computed map is made once per image and cached",
+    )
+    g.add_argument(
+        "--edge-weights",
+        metavar="PATH",
+        default=None,
+        help="--edges pidinet: a PiDiNet weights file (table5_*.npz; the authors' BSDS500 "
+        "checkpoints, research use only, not shipped with shapetree)",
     )
     dynamic: list[str] = ["classes", "k", "workers", "cache_dir"]
     if full:
@@ -220,6 +228,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             out_dir=args.out,
             progress=progress,
             edges=args.edges,
+            edge_weights=args.edge_weights,
             **kwargs,
         )
     else:

@@ -19,7 +19,7 @@ from shapetree.curves._validate import ACCEPTED_FORMS, _as_xy
 from shapetree.geometry import outline_dif
 
 from ._contours import TracedContour, polyline_length, trace_contours_detailed
-from ._edges import EDGE_METHODS, edge_map, load_edges, load_image
+from ._edges import EDGE_METHODS, WEIGHTED_METHODS, edge_map, load_edges, load_image
 from ._model import DetectionModel, load_model
 from ._stitch import complete_matches, run_stitch
 from ._tables import contour_tables
@@ -117,9 +117,17 @@ class DetectParams:
         ranking terms lift the mean DR at 0.4 FPPI from 0.626 (cost alone) to
         0.756; picked on four classes and scored on the fifth, 0.750
         (``benchmarks/ethz_rescore.py``).
-    edge_method : {"own", "gradient"}
+    edge_method : {"own", "gradient", "pidinet"}
         The :func:`edge_map` method used when no edge map is given ("own": the
-        boundary detector on Pb's cues).
+        boundary detector on Pb's cues; "pidinet": the learned PiDiNet detector, from
+        the weights file ``edge_weights``).
+    edge_weights : str or None
+        ``edge_method="pidinet"`` only, and required there: the path of a PiDiNet
+        ``table5_*.npz`` weights file (the authors' BSDS500 checkpoints from
+        ``hellozhuo/pidinet``, research use only, not shipped with shapetree).  Checked
+        when the parameters are made (a clear :class:`~shapetree.ShapeTreeError` if it
+        is missing, unreadable or not PiDiNet's).  Left out of :meth:`as_dict` when
+        None, so the keys of results made without it do not change.
     """
 
     m: int = 30
@@ -154,11 +162,27 @@ class DetectParams:
     outline_check: float = 0.4
     frame_prior: float = 0.075
     edge_method: str = "own"
+    edge_weights: str | None = None
 
     def __post_init__(self) -> None:
         if self.edge_method not in EDGE_METHODS:
             raise ShapeTreeError(
                 f"DetectParams.edge_method must be one of {EDGE_METHODS}, got {self.edge_method!r}"
+            )
+        if self.edge_weights is not None:
+            if not isinstance(self.edge_weights, str | os.PathLike):
+                raise ShapeTreeError(
+                    f"DetectParams.edge_weights must be a file path, got {self.edge_weights!r}"
+                )
+            object.__setattr__(self, "edge_weights", os.fspath(self.edge_weights))
+        if self.edge_method in WEIGHTED_METHODS:
+            from ._pidinet import check_weights
+
+            check_weights(self.edge_weights)  # None, missing or bad: a clear ShapeTreeError
+        elif self.edge_weights is not None:
+            raise ShapeTreeError(
+                f"DetectParams.edge_weights is for edge_method in {WEIGHTED_METHODS}, "
+                f"not {self.edge_method!r}"
             )
         lo, hi = self.contour_min_points, self.contour_max_points
         for field_name, v in (("contour_min_points", lo), ("contour_max_points", hi)):
@@ -175,8 +199,11 @@ class DetectParams:
             )
 
     def as_dict(self) -> dict[str, Any]:
-        """All parameters as a JSON-friendly dict."""
-        return dataclasses.asdict(self)
+        """All parameters as a JSON-friendly dict (``edge_weights`` only when set)."""
+        d = dataclasses.asdict(self)
+        if d["edge_weights"] is None:
+            del d["edge_weights"]
+        return d
 
 
 @dataclass
@@ -521,7 +548,7 @@ def detect_detailed(
     elif edges is None:
         if img is None:
             raise ImageError("detect needs an image or an edge map")
-        e = edge_map(img, method=p.edge_method)
+        e = edge_map(img, method=p.edge_method, weights=p.edge_weights)
     elif isinstance(edges, (str, os.PathLike)):
         e = load_edges(edges)
     else:

@@ -201,9 +201,10 @@ def detect_images(
         and their images skipped) or to this open stream (e.g. ``sys.stdout``).
     pictures : bool
         Write the Fig. 5-style picture of each image into ``out_dir`` (default True).
-    edges : {"own", "gradient"} or path-like
-        Edge source: the project's edge detectors (:func:`edge_map` methods) or, for a
-        single image, a stored soft edge map.
+    edges : {"own", "gradient", "pidinet"} or path-like
+        Edge source: the project's edge detectors (:func:`edge_map` methods; "pidinet"
+        needs ``params.edge_weights``, a PiDiNet weights file) or, for a single image, a
+        stored soft edge map.
     k : int
         Detections per image.
     params : DetectParams or None
@@ -234,7 +235,11 @@ def detect_images(
     edge_file: Path | None = None
     if str(edges) in EDGE_METHODS:
         edge_desc: dict[str, Any] = {"method": str(edges)}
-        p = dataclasses.replace(p, edge_method=str(edges))
+        p = dataclasses.replace(p, edge_method=str(edges))  # checks the weights (pidinet)
+        if p.edge_weights is not None:
+            from ._pidinet import check_weights
+
+            edge_desc["weights_sha256"] = check_weights(p.edge_weights)
     else:
         edge_file = Path(edges)
         if len(imgs) != 1:
