@@ -15,6 +15,11 @@ Per-image detections are cached as JSON files (one per class and image) under
 so an interrupted run resumes.  ``<key>`` hashes the parameters, ``k`` and
 :func:`shapetree._cache.code_fingerprint` (the package version and the source of
 the matching and detection code), so results of other code are never reused.
+
+A computed edge map (``edges="own"`` or ``"pidinet"``) is made once per image, before
+the detections, and kept as ``<cache>/edges/<method>-<key>/<folder>__<stem>.npz``
+(``<key>``: the method, the weights' SHA-256 and the edge-map code), so the protocol
+costs one edge map per image, not one per (image, model), and a rerun reads them back.
 """
 
 from __future__ import annotations

@@ -35,8 +35,11 @@ is replaced once, at load time, by the plain kernel it equals (:func:`pdc_kernel
   five.  The fused (fifth) map is the boundary probability, shape ``(H, W)``.
 
 Full convolutions are shifted matrix products (one BLAS ``matmul`` per kernel tap),
-depthwise ones shifted multiply-adds.  On the authors' reference crop the output equals
-theirs to about 1e-6 (``tests/test_pidinet.py``).
+depthwise ones shifted multiply-adds.  On the authors' reference crop (ETHZ
+``Mugs/apple.jpg``, 320 x 296) the fused map of each of the six checkpoints equals theirs
+to 2e-6 - 9e-6, max abs difference (``tests/test_pidinet.py`` asserts 1e-4).  Speed: the
+full model takes about 3 s for a 320 x 296 image on 2 CPU cores (0.9 s tiny), and grows
+with the pixel count; images over ``MAX_SIDE`` px run reduced.
 
 Thinning and scale (:func:`pidinet_edges`)
 ------------------------------------------
