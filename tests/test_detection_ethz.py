@@ -36,8 +36,8 @@ def _image_size(path: Path) -> tuple[int, int]:
 
 RANKINGS = {
     "default": {},
-    "cost alone": {"frame_prior": 0.0, "outline_check": 0.0},
-    "frame prior only": {"outline_check": 0.0},
+    "cost alone": {"frame_prior": 0.0, "outline_check": 0.0, "context_check": 0.0},
+    "frame prior only": {"outline_check": 0.0, "context_check": 0.0},
 }
 
 
@@ -78,7 +78,9 @@ def test_swan_ranking_terms_only_reorder(stem: str) -> None:
     model = load_model(ROOT / "models" / "swan.tif")
     gt = np.loadtxt(ROOT / "Swans" / f"{stem}_swans.groundtruth", ndmin=2)
     edges = ROOT / "Swans" / f"{stem}_edges.tif"
-    plain = detect(model, None, edges=edges, k=3, frame_prior=0.0, outline_check=0.0)
+    plain = detect(
+        model, None, edges=edges, k=3, frame_prior=0.0, outline_check=0.0, context_check=0.0
+    )
     dets = detect(model, None, edges=edges, k=3)
     assert sorted(d.cost for d in dets) == pytest.approx(sorted(d.cost for d in plain))
     assert sorted(map(tuple, (d.bbox for d in dets))) == sorted(map(tuple, (d.bbox for d in plain)))

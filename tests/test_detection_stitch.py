@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from shapetree import ShapeTreeError
-from shapetree.detection import Detection, detect, make_model
+from shapetree.detection import Detection, context_agreement, detect, make_model
 from shapetree.detection._stitch import _dif
 from shapetree.geometry import outline_dif
 
@@ -107,10 +107,13 @@ def test_complete_shape_without_gaps_and_json() -> None:
     js = best.to_json()
     assert set(js) >= {"score", "bbox", "model_points", "image_points", "gaps", "matched"}
     assert len(js["image_points"]) == 24
-    # no image: the score is the cost and the outline check (no frame prior)
+    # no image: the score is the cost, the outline check and the context check (no frame
+    # prior)
     d2 = outline_dif(best.model_points, best.image_points)
-    w = DetectParams().outline_check
-    assert w > 0 and 0 <= d2 < 0.05 and js["score"] == pytest.approx(-best.cost - w * d2)
+    agree = context_agreement(best.model_points, best.image_points)
+    w, wc = DetectParams().outline_check, DetectParams().context_check
+    assert w > 0 and 0 <= d2 < 0.05 and wc > 0 and 0.5 < agree <= 1.0
+    assert js["score"] == pytest.approx(-best.cost - w * d2 + wc * agree)
 
 
 def test_clutter_only_gives_weak_or_no_detections() -> None:
@@ -187,11 +190,12 @@ def test_frame_prior_reorders_by_image_share() -> None:
     conts, true_box = _scene(2, removed=[(1.0, 1.6)], n_clutter=20)
     model = make_model(_shape(MODEL_T), m=24)
     image = np.zeros((320, 420))
-    plain = detect(model, image, contours=conts, k=4, frame_prior=0.0, outline_check=0.0)
+    off = {"outline_check": 0.0, "context_check": 0.0}
+    plain = detect(model, image, contours=conts, k=4, frame_prior=0.0, **off)
     assert [d.score for d in plain] == pytest.approx([-d.cost for d in plain])
     w = DetectParams().frame_prior
     assert w > 0
-    ranked = detect(model, image, contours=conts, k=4, outline_check=0.0)  # image size known
+    ranked = detect(model, image, contours=conts, k=4, **off)  # image size known
     # the same detections (the prior does not change which are kept) ...
     assert sorted(d.cost for d in ranked) == pytest.approx(sorted(d.cost for d in plain))
     for d in ranked:
@@ -202,7 +206,7 @@ def test_frame_prior_reorders_by_image_share() -> None:
     assert [d.score for d in ranked] == sorted((d.score for d in ranked), reverse=True)
     assert _iou(ranked[0].bbox, true_box) > 0.7
     # without an image the size of the frame is unknown: scores stay -cost
-    none = detect(model, None, contours=conts, k=4, outline_check=0.0)
+    none = detect(model, None, contours=conts, k=4, **off)
     assert [d.score for d in none] == pytest.approx([-d.cost for d in none])
 
 
@@ -217,7 +221,7 @@ def test_outline_dif_and_outline_check() -> None:
     # the check is a ranking term: with only it on, score = -cost - w * d2
     conts, _ = _scene(2, removed=[(1.0, 1.6)], n_clutter=20)
     model = make_model(_shape(MODEL_T), m=24)
-    dets = detect(model, None, contours=conts, k=4, outline_check=0.5)
+    dets = detect(model, None, contours=conts, k=4, outline_check=0.5, context_check=0.0)
     for d in dets:
         assert d.score == pytest.approx(-d.cost - 0.5 * outline_dif(d.model_points, d.image_points))
     assert [d.score for d in dets] == sorted((d.score for d in dets), reverse=True)
@@ -241,6 +245,11 @@ def test_border_margin_ignores_the_picture_frame() -> None:
     assert run.contours == [] and run.detections == []
     kept = detect_detailed(square, None, edges=frame, k=2, border_margin=0.0)
     assert kept.contours  # the frame itself is traced when the margin is off
-    for bad in ({"border_margin": -1.0}, {"frame_prior": float("nan")}, {"outline_check": -1}):
+    for bad in (
+        {"border_margin": -1.0},
+        {"frame_prior": float("nan")},
+        {"outline_check": -1},
+        {"context_check": float("inf")},
+    ):
         with pytest.raises(ShapeTreeError, match=next(iter(bad))):
             detect_detailed(square, None, edges=frame, k=2, **bad)

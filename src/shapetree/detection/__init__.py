@@ -2,8 +2,10 @@
 
 Stages: a soft edge map (:func:`edge_map`, or a stored Pb map via :func:`load_edges`),
 contour tracing (:func:`trace_contours`), contour-vs-model tables of §3
-(:func:`contour_tables`), and the stitching DP with gaps (:func:`detect`, or
-:func:`detect_detailed` to keep the edge map and contours). Models come from outline
+(:func:`contour_tables`), the stitching DP with gaps (:func:`detect`, or
+:func:`detect_detailed` to keep the edge map and contours), and the verification of
+each kept detection by the shape-context agreement of its placed outline
+(:func:`context_agreement`). Models come from outline
 drawings, point files or arrays (:func:`load_model`, :func:`make_model`). The ETHZ Shape
 Classes protocol is :func:`evaluate_ethz` (DR against FPPI, :func:`dr_fppi_curve`).
 Pictures are drawn by :func:`shapetree.plotting.plot_detections`.
@@ -27,12 +29,14 @@ from shapetree.detection._model import (
     outline_from_image,
 )
 from shapetree.detection._tables import contour_tables
+from shapetree.detection._verify import context_agreement, shape_contexts
 
 __all__ = [
     "DetectParams",
     "Detection",
     "DetectionModel",
     "DetectionRun",
+    "context_agreement",
     "contour_tables",
     "detect",
     "detect_detailed",
@@ -46,5 +50,6 @@ __all__ = [
     "load_model",
     "make_model",
     "outline_from_image",
+    "shape_contexts",
     "trace_contours",
 ]
