@@ -105,6 +105,8 @@ def main() -> None:
         edges=args.edges,
         edge_weights=args.edge_weights,
     )
+    if args.edges == "pidinet":
+        res["edge_weights_note"] = PIDINET_NOTE
     res["machine"] = machine()
     res["command"] = "python3 benchmarks/eval_ethz.py " + " ".join(sys.argv[1:])
     from shapetree._atomic import atomic_write_bytes
@@ -126,6 +128,15 @@ def main() -> None:
             f"mean {res['edge_map_seconds_mean']:.3f} s"
         )
 
+
+#: What the PiDiNet results rest on (written into their JSON).
+PIDINET_NOTE = (
+    "the authors' PiDiNet checkpoints (hellozhuo/pidinet, table5_*, research use only, not "
+    "shipped) were trained on BSDS500 (+ the PASCAL VOC augmentation of RCF), not on ETHZ: "
+    "no ETHZ data chose the weights; the fixed map of the thinned output to the Pb scale "
+    "(_pidinet.P_KNOTS) was set on the Pb maps' pixel shares of 10 ETHZ images (first two "
+    "per class), without ground-truth boxes; DetectParams and the protocol are the Pb run's"
+)
 
 #: Thresholds whose shares of pixels the calibration matches (the tracer's range).
 CAL_THRESHOLDS = (0.05, 0.15, 0.3, 0.5)
