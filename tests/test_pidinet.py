@@ -195,9 +195,14 @@ def test_clear_errors_for_bad_weights(tmp_path: Path) -> None:
         load_pidinet(pth)
     _check_message(exc)
     junk = tmp_path / "junk.npz"
-    junk.write_text("hello")
-    with pytest.raises(ShapeTreeError, match="cannot read PiDiNet weights") as exc:
+    junk.write_text("hello")  # an image or a text file given by mistake
+    with pytest.raises(ShapeTreeError, match="not an .npz archive") as exc:
         load_pidinet(junk)
+    _check_message(exc)
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"PK\x03\x04" + b"\0" * 40)  # a damaged archive
+    with pytest.raises(ShapeTreeError, match="cannot read PiDiNet weights") as exc:
+        load_pidinet(broken)
     _check_message(exc)
     other = tmp_path / "other.npz"
     np.savez(other, something=np.zeros(3))

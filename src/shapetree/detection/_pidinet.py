@@ -69,6 +69,7 @@ from __future__ import annotations
 import hashlib
 import os
 import threading
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -444,10 +445,13 @@ def load_pidinet(path: str | os.PathLike[str] | None) -> PiDiNet:
         raise ShapeTreeError(
             f"{p} is a torch checkpoint; shapetree reads the .npz copy (no torch). {_WHERE}"
         )
+    with open(p, "rb") as fh:
+        if fh.read(4) != b"PK\x03\x04":  # an .npz is a zip archive
+            raise ShapeTreeError(f"{p} is not an .npz archive of PiDiNet weights. {_WHERE}")
     try:
         with np.load(p, allow_pickle=False) as z:
             raw = {k.removeprefix("module."): np.asarray(z[k]) for k in z.files}
-    except (OSError, ValueError, EOFError) as exc:
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
         raise ShapeTreeError(f"cannot read PiDiNet weights {p}: {exc}. {_WHERE}") from None
     init = raw.get("init_block.weight")
     if init is None or init.ndim != 4:
