@@ -5,13 +5,13 @@ Usage::
     python3 benchmarks/ethz_rescore.py [--workers 2]
 
 Runs (or reads from the detection cache) every class model over all 255 images with
-detections ranked by cost alone (``outline_check=0``, ``frame_prior=0``, every other
-``DetectParams`` at its default), then re-scores the kept detections with
-``-cost - c * outline_dif + f * log(sqrt(box area / image area))`` for every pair ``(c, f)``
-of a grid.  Both terms only re-order kept detections, so this equals running the detector
-with ``outline_check=c, frame_prior=f``.  Reports the mean DR at 0.4 FPPI (20% rule) for
-each pair and a leave-one-class-out estimate: the pair is picked on four classes and scored
-on the fifth.  Writes ``benchmarks/results/ethz_ranking.json``.
+detections ranked by cost alone (``outline_check=0``, ``frame_prior=0``,
+``context_check=0``, every other ``DetectParams`` at its default), then re-scores the
+kept detections with ``-cost - c * outline_dif + f * log(sqrt(box area / image area))``
+for every pair ``(c, f)`` of a grid.  Both terms only re-order kept detections, so this
+equals running the detector with ``outline_check=c, frame_prior=f``.  Reports the mean DR
+at 0.4 FPPI (20% rule) for each pair and a leave-one-class-out estimate: the pair is
+picked on four classes and scored on the fifth.  Writes ``benchmarks/results/ethz_ranking.json``.
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def main() -> None:
     ap.add_argument("--json", default=str(RESULTS / "ethz_ranking.json"))
     args = ap.parse_args()
     t0 = time.perf_counter()
-    params = DetectParams(frame_prior=0.0, outline_check=0.0)
+    params = DetectParams(frame_prior=0.0, outline_check=0.0, context_check=0.0)
     res = evaluate_ethz(
         args.data, cache_dir=args.cache_dir, params=params, k=5, workers=args.workers
     )
