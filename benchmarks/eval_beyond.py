@@ -303,7 +303,7 @@ def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
             nq = rows.shape[1] // nq * nq
             rec["sample_from"] = (
                 f"the first {rows.shape[1]} rows of an unfinished full run ({nq} used: "
-                f"{nq * 70 // n} per class)"
+                f"{nq // 70} per class)"
             )
             rows = rows[:, :nq]
         else:
@@ -326,7 +326,7 @@ def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
         "positions_in_class": sorted({int(i) % 20 for i in perm[:nq]}),
         "bullseye": round(100 * float(frac.mean()), 2),
         "stderr": round(100 * float(frac.std(ddof=1) / np.sqrt(nq)), 2),
-        "measure": f"{nq} queries ({nq * 70 // n} per class, the same positions in every "
+        "measure": f"{nq} queries ({nq // 70} per class, the same positions in every "
         "class) against all 1400, bull's-eye k = 40 of those queries (exact per query; mean "
         "+- standard error)",
     }
