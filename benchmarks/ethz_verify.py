@@ -38,9 +38,10 @@ tree          the section 3 closed-curve shape-tree distance ``match(model, P)``
 generic       ``tree`` minus the smallest ``match(G, P)`` over generic shapes ``G``
               (ellipses and rectangles of aspect 1, 1.6, 2.5, 4; a triangle): is ``P`` more
               like the model than like any simple shape?
-context       shape-context agreement: mean over the 30 samples of the histogram
-              intersection of their log-polar histograms (5 x 12 bins, radii over the mean
-              pairwise distance) in the model and in the placement, in ``[0, 1]``
+context       shape-context agreement (``shapetree.detection.context_agreement``): mean
+              over the 30 samples of the histogram intersection of their log-polar
+              histograms (5 x 12 bins, radii over the mean pairwise distance) in the model
+              and in the placement, in ``[0, 1]``
 margin        score minus the best score of the same image (0 for the image's best)
 lead          for an image's best detection, its lead over the second; else 0
 density       share of the image's pixels with an edge (> 0.15)
@@ -82,6 +83,7 @@ from _common import RESULTS, machine, write_json  # noqa: E402
 from shapetree.curves import resample  # noqa: E402
 from shapetree.detection import (  # noqa: E402
     DetectParams,
+    context_agreement,
     dr_at_fppi,
     dr_fppi_curve,
     edge_map,
@@ -144,21 +146,6 @@ def _tree(a: np.ndarray, b: np.ndarray) -> float:
         return float(match(a, b, closed=True).cost)
     except ValueError:  # a degenerate placed outline
         return 1.0
-
-
-def _shape_context(p: np.ndarray) -> np.ndarray:
-    """Log-polar histograms (n, 60) of each point against the others."""
-    d = p[None] - p[:, None]
-    r = np.hypot(d[..., 0], d[..., 1])
-    mean = r[r > 0].mean() if (r > 0).any() else 1.0
-    rb = np.digitize(np.log(np.maximum(r / mean, 1e-9)), np.log([0.125, 0.25, 0.5, 1.0, 2.0]))
-    ab = (np.floor((np.arctan2(d[..., 1], d[..., 0]) + np.pi) / (2 * np.pi) * 12) % 12).astype(int)
-    h = np.zeros((len(p), 6 * 12))
-    off = ~np.eye(len(p), dtype=bool)
-    for i in range(len(p)):
-        np.add.at(h[i], rb[i, off[i]] * 12 + ab[i, off[i]], 1.0)
-    h = h[:, 12:]  # radius bin 0 (< 1/8 of the mean distance) dropped: 5 x 12 bins
-    return h / np.maximum(h.sum(1, keepdims=True), 1.0)
 
 
 def _edge_fields(e: np.ndarray) -> dict:
@@ -252,7 +239,7 @@ def _terms(f: dict, q: np.ndarray, d: dict, model: np.ndarray, generic: dict) ->
     out["worst_part"] = float(np.sort(win)[int(0.8 * m)])
     out["tree"] = _tree(model, pts)
     out["generic"] = out["tree"] - min(_tree(g, pts) for g in generic.values())
-    out["context"] = float(np.mean(np.minimum(_shape_context(model), _shape_context(pts)).sum(1)))
+    out["context"] = context_agreement(model, pts)
     return out
 
 

@@ -156,6 +156,7 @@ def _cmd_single(args: argparse.Namespace, params: dict[str, Any]) -> int:
         info(
             "ranked by score = -cost - outline_check * outline_dif"
             " + frame_prior * log(sqrt(box share of the image))"
+            " + context_check * context_agreement"
         )
     if args.output:
         info(f"picture: {args.output}")

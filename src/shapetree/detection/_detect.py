@@ -126,8 +126,8 @@ class DetectParams:
         intersection of log-polar shape contexts, in the image frame, so an upright
         placement agrees more than one on its side) (0.15; 0 turns it off).  Like
         the two terms above it only re-orders the kept detections.  The weight is
-        the one that leave-one-class-out selection on ETHZ picks in four of five
-        folds (0.25 standard deviations of the score per standard deviation of
+        the one that leave-one-class-out selection on ETHZ picks most often, in
+        three of five folds (0.25 standard deviations of the score per standard deviation of
         ``a``, i.e. 0.15; ``benchmarks/ethz_verify.py``).
     edge_method : {"own", "gradient", "pidinet"}
         The :func:`edge_map` method used when no edge map is given ("own": the
