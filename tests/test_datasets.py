@@ -371,11 +371,21 @@ def test_ethz_real(real: Path) -> None:
         boxes[im.class_name] += len(im.boxes)
         assert im.image_path.is_file() and im.edges_path.is_file()
         assert im.edges_path.name == f"{im.stem}_edges.tif"
-        assert im.boxes.dtype == np.int64 and im.boxes.shape[1] == 4
+        assert im.boxes.dtype == np.float64 and im.boxes.shape[1] == 4
         assert (im.boxes[:, 2] > im.boxes[:, 0]).all() and (im.boxes[:, 3] > im.boxes[:, 1]).all()
     assert boxes == {"Applelogos": 44, "Bottles": 55, "Giraffes": 91, "Mugs": 66, "Swans": 33}
     another = next(i for i in images if i.stem == "another")
     assert another.boxes.tolist() == [[104, 34, 282, 286]]
+    # the boxes are the very ones evaluate_ethz scores against, fractions included
+    from shapetree.datasets._ethz import ethz_root
+    from shapetree.detection._ethz_eval import _gt_boxes
+
+    root = ethz_root()
+    for im in images:
+        tag = ETHZ_CLASSES[im.class_name][0]
+        assert np.array_equal(im.boxes, _gt_boxes(root, im.class_name, im.stem, tag)), im.stem
+    grey = next(i for i in images if i.stem == "grey" and i.class_name == "Applelogos")
+    assert grey.boxes.tolist() == [[690.5, 239.8333, 909.1667, 490.5]]
     for cls, stem in [("Applelogos", "applelogo"), ("bottles", "bottle"), ("giraffe", "giraffe")]:
         assert ds.ethz_model_path(cls) == real / "ethz_shape/ETHZShapeClasses-V1.2/models" / (
             stem + ".tif"
@@ -403,7 +413,8 @@ def _make_ethz_like(root: Path) -> Path:
 def test_ethz_synthetic_and_bad_groundtruth(tmp_env: Path) -> None:
     base = _make_ethz_like(tmp_env)
     images = ds.load_ethz()
-    assert len(images) == 5 and images[0].boxes.tolist() == [[1, 2, 10, 12], [3, 4, 20, 15]]
+    # fractional values are kept as the file gives them
+    assert len(images) == 5 and images[0].boxes.tolist() == [[1, 2, 10, 12], [3, 4, 20.4, 15]]
     gt = base / "Mugs" / "im_mugs.groundtruth"
     gt.write_text("1 2 3\n")
     with pytest.raises(DatasetError, match=r"im_mugs\.groundtruth.*3 values"):

@@ -30,9 +30,11 @@ class EthzImage:
     class_name : str
         Class folder: ``Applelogos``, ``Bottles``, ``Giraffes``, ``Mugs`` or ``Swans``.
     boxes : numpy.ndarray
-        ``(N, 4)`` int64 ground-truth boxes ``x1, y1, x2, y2`` (pixels) of every
-        instance of the image's class. A few files of the release hold fractional
-        values (e.g. ``Applelogos/grey``); they are rounded to the nearest pixel.
+        ``(N, 4)`` float64 ground-truth boxes ``x1, y1, x2, y2`` (pixels) of every
+        instance of the image's class, as the file gives them. A few files of the
+        release hold fractional values (e.g. ``Applelogos/grey``); they are kept, so
+        these are exactly the boxes :func:`shapetree.detection.evaluate_ethz` scores
+        against.
     """
 
     image_path: Path
@@ -75,7 +77,8 @@ def ethz_root(root: str | os.PathLike[str] | None = None) -> Path:
     )
 
 
-def _read_boxes(path: Path) -> np.ndarray:
+def read_boxes(path: Path) -> np.ndarray:
+    """The ``(N, 4)`` float64 boxes of one ``.groundtruth`` file (validated)."""
     try:
         text = path.read_text(encoding="ascii")
     except (OSError, UnicodeDecodeError) as e:
@@ -93,13 +96,13 @@ def _read_boxes(path: Path) -> np.ndarray:
             raise DatasetError(f"{path}: line {lineno} has {len(vals)} values, expected 4")
         if not all(np.isfinite(vals)):
             raise DatasetError(f"{path}: line {lineno} has non-finite values: {line!r}")
-        x1, y1, x2, y2 = (int(round(v)) for v in vals)
+        x1, y1, x2, y2 = vals
         if x2 <= x1 or y2 <= y1:
             raise DatasetError(f"{path}: line {lineno}: empty box {line.strip()!r}")
         boxes.append((x1, y1, x2, y2))
     if not boxes:
         raise DatasetError(f"{path}: ground-truth file has no boxes")
-    return np.array(boxes, dtype=np.int64).reshape(-1, 4)
+    return np.array(boxes, dtype=np.float64).reshape(-1, 4)
 
 
 def load_ethz(
@@ -143,7 +146,7 @@ def load_ethz(
                 raise DatasetError(f"{edges}: edge map missing for {jpg.name}")
             if not gt.is_file():
                 raise DatasetError(f"{gt}: ground-truth file missing for {jpg.name}")
-            out.append(EthzImage(jpg, edges, cls, _read_boxes(gt)))
+            out.append(EthzImage(jpg, edges, cls, read_boxes(gt)))
     return out
 
 

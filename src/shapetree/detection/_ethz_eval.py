@@ -92,13 +92,14 @@ def _images(root: Path) -> list[tuple[str, str]]:
 
 
 def _gt_boxes(root: Path, folder: str, stem: str, cls: str) -> np.ndarray:
+    """The boxes of class tag ``cls`` in one image (none when it has no such file), read
+    by the dataset loader's reader, so the evaluation and ``load_ethz`` agree."""
+    from shapetree.datasets._ethz import read_boxes
+
     p = root / folder / f"{stem}_{cls}.groundtruth"
     if not p.exists():
         return np.zeros((0, 4))
-    vals = np.loadtxt(p, ndmin=2)
-    if vals.size == 0:
-        return np.zeros((0, 4))
-    return vals[:, :4].astype(np.float64)
+    return read_boxes(p)
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
