@@ -47,14 +47,17 @@ lead          for an image's best detection, its lead over the second; else 0
 density       share of the image's pixels with an edge (> 0.15)
 ============  ============================================================================
 
-Three ways to use them are scored, each by the mean DR at 0.4 FPPI (20% rule and
+Four ways to use them are scored, each by the mean DR at 0.4 FPPI (20% rule and
 PASCAL) with the evaluation's scorer:
 
 1. the AUC of each term (true vs false detections) per class;
 2. ``score + w * z(term)`` for one term at a time, ``z`` standardised on the training
    classes and ``w`` on a grid of both signs, chosen leave-one-class-out (chosen on four
    classes, scored on the fifth);
-3. a logistic regression on all the terms, trained on four classes (IoU >= 0.2 as the
+3. ``score + w1 * z(context) + w2 * z(term)``: the best single term plus one more, both
+   weights on the grid and chosen together leave-one-class-out (one step of forward
+   selection; ``pair_with_context`` in the JSON);
+4. a logistic regression on all the terms, trained on four classes (IoU >= 0.2 as the
    label) and scoring the fifth.
 
 The leave-one-class-out means are the headline; the best in-sample weight of each term is
@@ -66,6 +69,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pickle
 import sys
 import time
 from multiprocessing import Pool
@@ -80,6 +84,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import RESULTS, machine, write_json  # noqa: E402
 
+from shapetree._atomic import atomic_write_bytes  # noqa: E402
 from shapetree.curves import resample  # noqa: E402
 from shapetree.detection import (  # noqa: E402
     DetectParams,
@@ -340,6 +345,39 @@ def _with_mean(pairs: dict, i: int) -> dict:
     return {**row, "mean": _mean(row)}
 
 
+def _pairs(sc: _Scorer, score: np.ndarray, first: str) -> dict:
+    """``score + w1 z(first) + w2 z(t)`` for every other term ``t``, both weights on
+    ``W_GRID`` and chosen together leave-one-class-out (forward selection, one step)."""
+    out = {}
+    v1 = sc.col(first)
+    for t in TERMS:
+        if t == first:
+            continue
+        v2 = sc.col(t)
+        loco, chosen = {}, {}
+        for c_out in ETHZ_CLASSES:
+            tr = sc.cls != c_out
+            others = [c for c in ETHZ_CLASSES if c != c_out]
+            z1 = (v1 - v1[tr].mean()) / (v1[tr].std() + 1e-12) * score[tr].std()
+            z2 = (v2 - v2[tr].mean()) / (v2[tr].std() + 1e-12) * score[tr].std()
+            best = None
+            for w1 in W_GRID:
+                for w2 in W_GRID:
+                    s = score + w1 * z1 + w2 * z2
+                    key = (np.mean([sc.dr(c, s)[0] for c in others]), -abs(w1) - abs(w2))
+                    if best is None or key > best[0]:
+                        best = (key, w1, w2)
+            _, w1, w2 = best
+            chosen[c_out] = [w1, w2]
+            loco[c_out] = sc.dr(c_out, score + w1 * z1 + w2 * z2)
+        out[t] = {
+            "weights_chosen": chosen,
+            "loco_overlap_20": _with_mean(loco, 0),
+            "loco_overlap_50": _with_mean(loco, 1),
+        }
+    return out
+
+
 def analyse(sc: _Scorer) -> dict:
     score = sc.col("score")
     label = sc.col("iou") >= 0.2
@@ -382,6 +420,7 @@ def analyse(sc: _Scorer) -> dict:
             "loco_overlap_50": _with_mean(loco, 1),
             "in_sample_best": {"w": w_in, "mean_overlap_20": ins[w_in]},
         }
+    out["pair_with_context"] = _pairs(sc, score, "context")
     x = np.stack([sc.col(t) for t in ("score",) + TERMS], 1)
     lr = {}
     for c_out in ETHZ_CLASSES:
@@ -418,6 +457,12 @@ def main() -> None:
     )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None)
+    ap.add_argument(
+        "--rows",
+        default=None,
+        help="a file keeping the measured terms (a pickle this script wrote): read when "
+        "it exists, else written, so the analysis can be rerun without measuring again",
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
     root = ethz_root(args.data)
@@ -434,10 +479,17 @@ def main() -> None:
     from tqdm import tqdm
 
     rows: list[dict] = []
-    init = (str(root), str(cache), args.edges, args.context_check)
-    with Pool(args.workers, initializer=_init, initargs=init) as pool:
-        for r in tqdm(pool.imap(_image_rows, imgs), total=len(imgs), desc="terms", unit="img"):
-            rows.extend(r)
+    rows_file = Path(args.rows) if args.rows else None
+    if rows_file is not None and rows_file.is_file():
+        rows = pickle.loads(rows_file.read_bytes())
+        print(f"terms read from {rows_file}", flush=True)
+    else:
+        init = (str(root), str(cache), args.edges, args.context_check)
+        with Pool(args.workers, initializer=_init, initargs=init) as pool:
+            for r in tqdm(pool.imap(_image_rows, imgs), total=len(imgs), desc="terms", unit="img"):
+                rows.extend(r)
+        if rows_file is not None:
+            atomic_write_bytes(rows_file, pickle.dumps(rows))
     sc = _Scorer(root, rows, len(imgs))
     out = analyse(sc)
     ref = out["reference"]["overlap_20"]["mean"]
@@ -452,6 +504,10 @@ def main() -> None:
         print(
             f"{t:12s} {a:48s} {lo20:.4f}   {lo50:.4f}  {ins['mean_overlap_20']:.4f} (w {ins['w']})"
         )
+    print("context plus one more term, both weights chosen leave one class out:")
+    for t, r in out["pair_with_context"].items():
+        lo20, lo50 = r["loco_overlap_20"]["mean"], r["loco_overlap_50"]["mean"]
+        print(f"  context + {t:12s} {lo20:.4f}   {lo50:.4f}")
     lr = out["logistic_all_terms"]
     lo20, lo50 = lr["loco_overlap_20"]["mean"], lr["loco_overlap_50"]["mean"]
     print(
