@@ -111,29 +111,24 @@ class DetectParams:
         kept detection whose box covers a share ``r`` of the image area scores
         ``frame_prior * log(sqrt(r))`` more (at most 0), so of two equally good matches
         the one that fills more of the picture ranks first, in its image and
-        across images (0.13; 0 turns it off).  It changes neither the
+        across images (0.075; 0 turns it off).  It changes neither the
         stitching nor which detections are kept, only their order.  It encodes
         that photographed objects tend to fill the frame.  It is off where the
-        image size is unknown (``contours=`` without an image).  On ETHZ the
-        outline check and a frame prior of 0.075 lifted the mean DR at 0.4 FPPI
-        from 0.626 (cost alone) to 0.756; picked on four classes and scored on
-        the fifth, 0.750 (``benchmarks/ethz_rescore.py``).  The weight was then
-        chosen again together with ``context_check`` (below).
+        image size is unknown (``contours=`` without an image).  On ETHZ the two
+        ranking terms lift the mean DR at 0.4 FPPI from 0.626 (cost alone) to
+        0.756; picked on four classes and scored on the fifth, 0.750
+        (``benchmarks/ethz_rescore.py``).
     context_check : float
         Verification on the *ranking score* (not on the cost): a kept detection
         scores ``context_check * a`` more, where ``a`` in ``[0, 1]`` is the
         shape-context agreement of the model's samples and their placement in the
         image (:func:`~shapetree.detection.context_agreement`: mean histogram
         intersection of log-polar shape contexts, in the image frame, so an upright
-        placement agrees more than one on its side) (0.31; 0 turns it off).  Like
-        the two terms above it only re-orders the kept detections.  This weight and
-        ``frame_prior`` were chosen together, leave-one-class-out on ETHZ (Pb): both
-        on a grid of standard deviations of the score per standard deviation of the
-        term, on four classes, scored on the fifth.  The pair picked most often (in
-        three of five folds) is 0.5 for ``a`` and 0.25 more for the frame term, i.e.
-        0.31 and 0.075 + 0.056 = 0.13 (``benchmarks/ethz_verify.py``, "context plus
-        one more term").  Held out, that selection scores a mean DR at 0.4 FPPI of
-        0.796, against 0.768 for the context weight chosen alone.
+        placement agrees more than one on its side) (0.15; 0 turns it off).  Like
+        the two terms above it only re-orders the kept detections.  The weight is
+        the one that leave-one-class-out selection on ETHZ picks most often, in
+        three of five folds (0.25 standard deviations of the score per standard deviation of
+        ``a``, i.e. 0.15; ``benchmarks/ethz_verify.py``).
     edge_method : {"own", "gradient", "pidinet"}
         The :func:`edge_map` method used when no edge map is given ("own": the
         boundary detector on Pb's cues; "pidinet": the learned PiDiNet detector, from
@@ -177,8 +172,8 @@ class DetectParams:
     full_perimeter: float = 240.0
     border_margin: float = 6.0
     outline_check: float = 0.4
-    frame_prior: float = 0.13
-    context_check: float = 0.31
+    frame_prior: float = 0.075
+    context_check: float = 0.15
     edge_method: str = "own"
     edge_weights: str | None = None
 
