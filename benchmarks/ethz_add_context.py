@@ -10,11 +10,12 @@ score gives the ranking a new run with the term would give, without detecting ag
 to the cache's rounding of placements to 0.01 px (checked on the Pb run: mean DR at 0.4
 FPPI 0.8114 re-scored and re-run under the 20% rule, 0.7537 against 0.7559 under PASCAL,
 where one giraffe changes place; on the own-edge run 0.7505 both). The frame prior only
-re-orders too: ``--cached-frame-prior`` is the weight the cache was ranked with (0.075) and
-``(frame_prior - cached) * frame_term(box, image size)`` is added (nothing with the default
-0.075). On the Pb run, ``--context-check 0.31 --frame-prior 0.13`` gives 0.8204 / 0.7548,
-the numbers of a re-run with those weights (``results/ethz_pair_trial.json``). Prints and
-writes the DR at 0.3 / 0.4 FPPI under the 20% rule and PASCAL, per class and mean.
+re-orders too: ``--cached-frame-prior`` is the weight the cache was ranked with and
+``(frame_prior - cached) * frame_term(box, image size)`` is added (nothing when both are
+the current default). On the Pb run, ``--context-check 0.31 --frame-prior 0.13`` gives
+0.8204 / 0.7548, the numbers of a re-run with those weights
+(``results/ethz_pair_trial.json``). Prints and writes the DR at 0.3 / 0.4 FPPI under the
+20% rule and PASCAL, per class and mean.
 """
 
 from __future__ import annotations
@@ -57,8 +58,8 @@ def main() -> None:
     ap.add_argument(
         "--cached-frame-prior",
         type=float,
-        default=0.075,
-        help="the frame_prior the cached run was ranked with (0.075 before session 9)",
+        default=DetectParams().frame_prior,
+        help="the frame_prior the cached run was ranked with (default: the current default)",
     )
     ap.add_argument("--json", required=True)
     args = ap.parse_args()

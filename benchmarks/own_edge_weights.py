@@ -7,7 +7,9 @@ and what it costs the texture cue:
 
 1. For 40 ETHZ images (8 per class, evenly spaced in each class's sorted list), the forms
    of every cue at the scales ``L, a, b``: 1, 2, 4, 8 px and texture: 4, 8, 16 px, each
-   clipped to χ² <= 1 (computed with the module's own ``_channels`` / ``_cue_forms``).
+   clipped to χ² <= 1 (computed with the module's own ``_channels`` / ``_cue_forms``). A
+   one-channel image would get zero colour forms here, where the module moves the colour
+   weights to ``L``; all 40 images are RGB.
 2. The score of a weighting: the F-measure of its thinned map against the Pb map (2 px
    tolerance), with the own map thresholded at the same pixel share as Pb above 0.05, 0.15
    and 0.3 (so no calibration is needed), averaged over the three and over the images.
@@ -127,13 +129,22 @@ def calibration(ths: list[np.ndarray], pbs: list[np.ndarray]) -> tuple[float, fl
     return float(off), float(slope)
 
 
+def f_score(ths: list[np.ndarray], data: list[dict], idx: list[int]) -> float:
+    """Mean F-measure of thinned maps ``ths`` against the Pb maps of images ``idx``."""
+    return float(np.mean([f_measure(t, data[i]["pb"]) for t, i in zip(ths, idx, strict=True)]))
+
+
+def search_f(w: np.ndarray, data: list[dict], idx: list[int]) -> float:
+    """What the search maximises: the F-measure alone (no calibration needed)."""
+    return f_score([thinned(data[i]["forms"], w) for i in idx], data, idx)
+
+
 def evaluate(w: np.ndarray, data: list[dict], idx: list[int]) -> dict[str, float]:
     ths = [thinned(data[i]["forms"], w) for i in idx]
-    pbs = [data[i]["pb"] for i in idx]
-    off, rng = calibration(ths, pbs)
+    off, rng = calibration(ths, [data[i]["pb"] for i in idx])
     tex = sum(w[j] for j, (c, _) in enumerate(KEYS) if c == "texture")
     return {
-        "f": float(np.mean([f_measure(t, p) for t, p in zip(ths, pbs, strict=True)])),
+        "f": f_score(ths, data, idx),
         "e_offset": off,
         "e_range": rng,
         "texture_only_cap": float((tex - off) / rng),
@@ -142,14 +153,14 @@ def evaluate(w: np.ndarray, data: list[dict], idx: list[int]) -> dict[str, float
 
 def search(w0: np.ndarray, data: list[dict], train: list[int]) -> tuple[np.ndarray, list]:
     best = w0.copy()
-    bf = evaluate(best, data, train)["f"]
+    bf = search_f(best, data, train)
     steps = []
     for sweep in range(2):
         for j, key in enumerate(KEYS):
             for fac in (0.0, 0.5, 2.0):
                 w = best.copy()
                 w[j] = w[j] * fac if w[j] > 0 else (0.05 if fac == 2.0 else 0.0)
-                f = evaluate(w, data, train)["f"]
+                f = search_f(w, data, train)
                 if f > bf + 1e-4:
                     best, bf = w, f
                     steps.append([sweep, f"{key[0]}:{key[1]:g}", fac, round(f, 4)])
