@@ -201,7 +201,14 @@ def test_distances_on_a_local_dask_cluster_equal_the_threads(capsys, folder, tmp
     code, _, err = run(capsys, *args, "--dask", "local:zero", "-o", tmp_path / "X.npz")
     assert code != 0 and "local:N" in err and "Traceback" not in err
     assert not (tmp_path / "X.npz").exists()
-    code, _, err = run(
-        capsys, *args, "--dask", "local:2", "--neighbours", "2", "-o", tmp_path / "X.npz"
-    )
-    assert code != 0 and "choose one" in err
+    # the pruned search on the cluster: bitwise the threaded search, which is the full
+    # matrix's 2 smallest per row
+    nn = ["--neighbours", "2", "--no-cache"]
+    code, _, err = run(capsys, *args, *nn, "-o", tmp_path / "NT.npz")
+    assert code == 0, err
+    code, _, err = run(capsys, *args, *nn, "--dask", "local:2", "-o", tmp_path / "ND.npz")
+    assert code == 0, err
+    nt, nd = np.load(tmp_path / "NT.npz"), np.load(tmp_path / "ND.npz")
+    assert np.array_equal(nd["indices"], nt["indices"])
+    assert np.array_equal(nd["distances"], nt["distances"])
+    assert np.allclose(nt["distances"], np.sort(d, axis=1)[:, :2], rtol=1e-6, atol=0)

@@ -355,3 +355,68 @@ def test_client_killed_mid_run_resumes(tmp_path: Path) -> None:
     resumed = directed_costs(_shapes(30, seed=6), cache_dir=cache, stats=stats, **kw)
     assert stats["blocks_cached"] >= n_written and stats["pairs_computed"] < 30 * 30
     assert np.array_equal(resumed, directed_costs(_shapes(30, seed=6), **kw))
+
+
+# ---------------------------------------------------------------- the pruned search
+
+
+@pytest.mark.parametrize("symmetrize", ["none", "mean", "reverse"])
+def test_knn_bitwise_equal_and_cache_shared_with_threads(client, tmp_path, symmetrize) -> None:
+    """``knn(scheduler=...)``: each block of queries is a task; the indices and distances
+    are bitwise the threaded search's, which are the full matrix's ``k`` smallest per row
+    (ties by index), and the blocks the cluster wrote are what a threaded run reads."""
+    from shapetree.retrieval import knn
+
+    curves = _shapes(16, seed=7)
+    q, db = curves[:9], curves[4:]
+    kw = dict(CFG, symmetrize=symmetrize, k=3, block=2)
+    ref_i, ref_d = knn(q, db, workers=2, **kw)
+    stats: dict = {}
+    got_i, got_d = knn(q, db, scheduler=client, cache_dir=tmp_path, stats=stats, **kw)
+    assert stats["engine"] == "dask" and stats["blocks"] == 5 and stats["blocks_cached"] == 0
+    assert stats["full"] < 9 * 12  # the bound pruned some pairs on the workers too
+    assert np.array_equal(got_i, ref_i) and np.array_equal(got_d, ref_d)
+    full = distance_matrix(q, db, workers=2, progress=False, **{**CFG, "symmetrize": symmetrize})
+    order = np.argsort(full, axis=1, kind="stable")[:, :3]
+    assert np.array_equal(ref_i, order)
+    assert np.allclose(ref_d, np.take_along_axis(full, order, axis=1), rtol=1e-6, atol=0)
+    again: dict = {}
+    th_i, th_d = knn(q, db, workers=2, cache_dir=tmp_path, stats=again, **kw)
+    assert again["blocks_cached"] == 5 and again["engine"] == "threads"
+    assert np.array_equal(th_i, ref_i) and np.array_equal(th_d, ref_d)
+    assert client.status == "running"
+
+
+def test_knn_worker_with_other_code_is_refused() -> None:
+    with pytest.raises(ShapeTreeError, match="other shapetree code"):
+        _dask._knn_task((None, None), (None, None), (), "0" * 64, (0, 1), None)
+
+
+def test_evaluate_neighbours_on_a_local_cluster(tmp_path) -> None:
+    """``evaluate(neighbours=K, dask="local:2")``: the pruned search and the rows completed
+    in full after it (a test leaf with no training leaf among its K nearest) run on one
+    local cluster; the score is the threaded one."""
+    from shapetree.datasets import load
+    from shapetree.retrieval import evaluate
+
+    classes = sorted(set(load("swedish_leaf", n_points=None, progress=False).labels))[:3]
+    kw = dict(
+        n_points=14,
+        per_class=28,
+        n_splits=3,
+        classes=",".join(classes),
+        neighbours=2,
+        progress=False,
+        verbose=False,
+    )
+    before = _children()
+    ref = evaluate("swedish_leaf", "swedish_leaf", workers=2, **kw)
+    got = evaluate("swedish_leaf", "swedish_leaf", dask="local:2", **kw)
+    assert got["accuracy_splits"] == ref["accuracy_splits"]
+    assert got["neighbours"]["engine"] == "dask" and ref["neighbours"]["engine"] == "threads"
+    assert got["neighbours"]["rows_completed"] == ref["neighbours"]["rows_completed"] > 0
+    assert got["pairs_computed"] == ref["pairs_computed"]
+    deadline = time.time() + 30
+    while _children() - before and time.time() < deadline:
+        time.sleep(0.1)
+    assert not _children() - before, "dask='local:2' left processes behind"

@@ -47,6 +47,7 @@ examples:
   shapetree distances shapes/ -o NN.npz --neighbours 10  # each shape's 10 nearest, exactly
   shapetree distances shapes/ -o D.npz --dask local:4     # 4 worker processes (Dask)
   shapetree distances shapes/ -o D.npz --dask tcp://10.0.0.5:8786  # a running cluster
+  shapetree distances shapes/ -o NN.npz --neighbours 10 --dask local:4  # both
 
 The .npz holds D (n x n, row = query), names (n file names) and config (JSON text):
   z = numpy.load("D.npz"); D, names = z["D"], z["names"]
@@ -214,9 +215,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--dask",
         metavar="ADDRESS",
         default=None,
-        help="run the row blocks on a dask.distributed cluster: a scheduler address "
-        "(tcp://host:8786) or local:N (N worker processes on this machine); the same cache "
-        "and bitwise the same matrix as the threads (pip install 'shapetree[dask]')",
+        help="run the row blocks (with --neighbours: the blocks of queries of the pruned "
+        "search) on a dask.distributed cluster: a scheduler address (tcp://host:8786) or "
+        "local:N (N worker processes on this machine); the same cache and bitwise the same "
+        "numbers as the threads (pip install 'shapetree[dask]')",
     )
     _add_run_options(p)
     p.set_defaults(func=cmd_distances)
@@ -317,11 +319,6 @@ def cmd_distances(args: argparse.Namespace) -> int:
     if index is not None:
         meta["database"] = args.shapes[0]
     if args.neighbours is not None:
-        if args.dask is not None:
-            raise ShapeTreeError(
-                "--neighbours runs the pruned search in threads on this machine; --dask runs "
-                "the full matrix's blocks on a cluster: choose one of them"
-            )
         return _write_neighbours(args, curves, names, config, cache, meta, out)
     d = distance_matrix(
         curves,
@@ -370,6 +367,7 @@ def _write_neighbours(
         cache_dir=cache,
         progress=not args.no_progress,
         stats=stats,
+        scheduler=args.dask,
     )
     meta["neighbours"] = {"k": int(idx.shape[1]), "skipped": round(stats["skipped"], 4)}
     with atomic_open(out, "wb") as fh:

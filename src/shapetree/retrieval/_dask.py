@@ -1,7 +1,8 @@
-"""The all-pairs engine's row blocks as tasks on a ``dask.distributed`` cluster.
+"""The engine's row blocks, and the pruned search's blocks of queries, as tasks on a
+``dask.distributed`` cluster.
 
-:func:`shapetree.retrieval.directed_costs` and :func:`~shapetree.retrieval.distance_matrix`
-take ``scheduler=``:
+:func:`shapetree.retrieval.directed_costs`, :func:`~shapetree.retrieval.distance_matrix`
+and :func:`~shapetree.retrieval.knn` take ``scheduler=``:
 
 * ``None``: threads in this process (the default, unchanged);
 * a :class:`distributed.Client` (used as it is, never closed here) or a
@@ -18,6 +19,10 @@ Design (why it is exact, and safe to kill):
 
 * Each row block is one task running the same :func:`shapetree.retrieval._engine._compute_block`
   on the same rows as the threaded engine, so the matrix is *bitwise* the threaded one.
+  Likewise each block of queries of :func:`~shapetree.retrieval.knn` is one task running
+  :func:`shapetree.retrieval._knn.knn_block` on the block's sampled curves, the same
+  bounds and full matchings as a thread computes for those rows (:func:`run_tasks` is
+  the one submission loop of both).
 * The prepared targets are scattered once to every worker (``broadcast=True``), not sent
   with each task; each task carries only its own rows' model curves.
 * Tasks are pure functions of their arguments, with a deterministic key derived from the
@@ -63,6 +68,7 @@ __all__ = [
     "local_cluster",
     "open_scheduler",
     "run_blocks",
+    "run_tasks",
 ]
 
 #: Seconds allowed to reach a scheduler given by address (and to start a local cluster).
@@ -345,6 +351,20 @@ def _progress_tick(topic: str | None, rows: tuple[int, int]) -> Callable[[int], 
     return tick
 
 
+def _check_code(fingerprint: str) -> None:
+    """Refuse to run on a worker whose shapetree code is not the client's."""
+    import shapetree
+    from shapetree._cache import code_fingerprint
+
+    mine = code_fingerprint()
+    if mine != fingerprint:
+        raise ShapeTreeError(
+            f"Dask worker runs other shapetree code (version {shapetree.__version__}, code "
+            f"fingerprint {mine[:12]}) than the client (fingerprint {fingerprint[:12]}): "
+            f"install the same shapetree on every worker"
+        )
+
+
 def _block_task(
     models: list[np.ndarray],
     targets: list[list[np.ndarray]],
@@ -355,18 +375,28 @@ def _block_task(
 ) -> np.ndarray:
     """One row block on a worker: ``_compute_block(models, targets, config)``, after
     checking that the worker runs the client's code. Pure (same arguments, same array)."""
-    import shapetree
-    from shapetree._cache import code_fingerprint
     from shapetree.retrieval._engine import _compute_block
 
-    mine = code_fingerprint()
-    if mine != fingerprint:
-        raise ShapeTreeError(
-            f"Dask worker runs other shapetree code (version {shapetree.__version__}, code "
-            f"fingerprint {mine[:12]}) than the client (fingerprint {fingerprint[:12]}): "
-            f"install the same shapetree on every worker"
-        )
+    _check_code(fingerprint)
     return _compute_block(models, targets, config, _progress_tick(topic, rows))
+
+
+def _knn_task(
+    block: tuple[Any, Any],
+    shared: tuple[Any, Any],
+    search: tuple[Any, ...],
+    fingerprint: str,
+    rows: tuple[int, int],
+    topic: str | None,
+) -> tuple[np.ndarray, dict[str, float]]:
+    """One block of queries of the pruned search on a worker
+    (:func:`shapetree.retrieval._knn.knn_block`), after the same code check. ``block``:
+    the block's prepared query curves (as models, as targets); ``shared``: the database's
+    (scattered once); ``search``: ``(config, keep_from, keep_top, k, step)``."""
+    from shapetree.retrieval._knn import knn_block
+
+    _check_code(fingerprint)
+    return knn_block(block, shared, *search)
 
 
 # ---------------------------------------------------------------- client side
@@ -408,16 +438,74 @@ def run_blocks(
     ShapeTreeError
         A task failed (its error, a worker mismatch, or workers killed by it too often).
     """
+    m = len(targets)
+    run_tasks(
+        scheduler,
+        _block_task,
+        targets,
+        lambda r0, r1, shared: (models[r0:r1], shared, config),
+        todo,
+        name=f"shapetree-block-{key[:24]}",
+        on_result=on_block,
+        units=lambda r0, r1: (r1 - r0) * m,
+        bar=bar,
+        reports=True,
+    )
+
+
+def run_tasks(
+    scheduler: DaskScheduler,
+    task: Callable[..., Any],
+    shared: Any,
+    task_args: Callable[[int, int, Any], tuple],
+    todo: list[tuple[int, int]],
+    *,
+    name: str,
+    on_result: Callable[[int, int, Any], None],
+    units: Callable[[int, int], int],
+    bar: Any = None,
+    reports: bool = False,
+) -> None:
+    """Run one task per block of rows on the cluster, handing each result to
+    ``on_result`` as it finishes (the engine's blocks and the pruned search's alike).
+
+    Parameters
+    ----------
+    scheduler : DaskScheduler
+    task : callable
+        Runs on a worker as ``task(*task_args(r0, r1, shared), fingerprint, (r0, r1),
+        topic)``; it checks the fingerprint (:func:`_check_code`) and is pure.
+    shared : object
+        Scattered once to every worker (``broadcast=True``); ``task_args`` receives its
+        future.
+    task_args : callable
+        ``(r0, r1, shared) -> tuple``: the block's own arguments.
+    todo : list of (int, int)
+        Row ranges ``[r0, r1)``.
+    name : str
+        Prefix of the task keys (derived from a cache key, so equal work has equal keys).
+    on_result : callable
+        ``on_result(r0, r1, result)``, called in this thread in order of completion.
+    units : callable
+        ``(r0, r1) -> int``: what a finished block adds to ``bar``.
+    bar : tqdm, optional
+    reports : bool
+        Whether running tasks report progress (``topic`` events of ``units``).
+
+    Raises
+    ------
+    ShapeTreeError
+        A task failed (its error, a worker mismatch, or workers killed by it too often).
+    """
     d = _distributed()
     from shapetree._cache import code_fingerprint
 
     client = scheduler.client()
     fingerprint = code_fingerprint()
-    m = len(targets)
     lock = threading.Lock()
     reported: dict[tuple[int, int], int] = {}
     finished: set[tuple[int, int]] = set()
-    topic = f"shapetree-progress-{uuid.uuid4().hex}" if bar is not None else None
+    topic = f"shapetree-progress-{uuid.uuid4().hex}" if bar is not None and reports else None
 
     def on_event(event: Any) -> None:
         _, msg = event
@@ -440,17 +528,15 @@ def run_blocks(
     try:
         for attempt in range(TASK_RETRIES + 1):
             again = f"-again{attempt}" if attempt else ""  # never reuse a cancelled key
-            [scattered] = client.scatter([targets], broadcast=True, hash=False)
+            [scattered] = client.scatter([shared], broadcast=True, hash=False)
             futures = {
                 client.submit(
-                    _block_task,
-                    models[r0:r1],
-                    scattered,
-                    config,
+                    task,
+                    *task_args(r0, r1, scattered),
                     fingerprint,
                     (r0, r1),
                     topic,
-                    key=f"shapetree-block-{key[:24]}-{r0:06d}-{r1:06d}{again}",
+                    key=f"{name}-{r0:06d}-{r1:06d}{again}",
                     retries=TASK_RETRIES,
                 ): (r0, r1)
                 for r0, r1 in remaining
@@ -461,7 +547,7 @@ def run_blocks(
                 for fut in d.as_completed(list(futures), loop=client.loop):
                     r0, r1 = futures[fut]
                     try:
-                        arr = fut.result()
+                        result = fut.result()
                     except d.client.FutureCancelledError:
                         lost = True  # its data went with the workers: resubmitted below
                         continue
@@ -478,13 +564,13 @@ def run_blocks(
                             f"{TASK_RETRIES} retries: {type(exc).__name__}: {exc}"
                         ) from exc
                     fut.release()
-                    on_block(r0, r1, arr)
+                    on_result(r0, r1, result)
                     remaining.remove((r0, r1))
                     with lock:
                         finished.add((r0, r1))
                         done = reported.pop((r0, r1), 0)
                         if bar is not None:
-                            bar.update((r1 - r0) * m - done)
+                            bar.update(units(r0, r1) - done)
                     postfix()
             finally:
                 client.cancel(list(futures))

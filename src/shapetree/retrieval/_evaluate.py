@@ -22,7 +22,7 @@ from shapetree._bench import PAPER_TABLES, format_table, headline, machine_info,
 from shapetree._errors import ShapeTreeError
 from shapetree.matching import OPTIONS, MatchConfig
 from shapetree.matching._config import resolve_config
-from shapetree.retrieval._engine import combine, directed_costs
+from shapetree.retrieval._engine import combine, directed_costs, distance_matrix
 from shapetree.retrieval._rerank import RERANK_DEFAULTS, tpg_rerank
 
 __all__ = ["EVAL_PARAMS", "evaluate"]
@@ -45,9 +45,10 @@ EVAL_PARAMS: dict[str, dict[str, Any]] = {
     "dask": {
         "type": str,
         "default": None,
-        "help": "run the matrix's row blocks on a dask.distributed cluster: a scheduler "
-        "address (tcp://host:8786) or local:N (N worker processes started for the run); "
-        "the same cache and numbers as the threads (pip install 'shapetree[dask]')",
+        "help": "run the matrix's row blocks (with neighbours: the pruned search's blocks "
+        "of queries) on a dask.distributed cluster: a scheduler address (tcp://host:8786) "
+        "or local:N (N worker processes started for the run); the same cache and numbers "
+        "as the threads (pip install 'shapetree[dask]')",
     },
     "neighbours": {
         "type": int,
@@ -100,11 +101,6 @@ def _resolve(params: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
             raise ShapeTreeError(f"neighbours must be an integer >= 1, got {p['neighbours']!r}")
         if p["neighbours"] < 1:
             raise ShapeTreeError(f"neighbours must be an integer >= 1, got {p['neighbours']!r}")
-        if p["dask"] is not None:
-            raise ShapeTreeError(
-                "neighbours runs the pruned search in threads on this machine; the Dask "
-                "scheduler runs the exhaustive matrix's blocks: choose one of them"
-            )
         if p["rerank"] != "none":
             raise ShapeTreeError(
                 "rerank='tpg' diffuses the whole distance matrix; it cannot be combined with "
@@ -327,32 +323,40 @@ def _neighbour_matrix(
             f"{name}: the protocol needs each shape's {need} nearest (neighbours={K}); "
             f"use neighbours >= {need}"
         )
+    from shapetree.retrieval._dask import open_scheduler
     from shapetree.retrieval._knn import knn
 
     kstats: dict[str, Any] = {}
-    idx, dist = knn(
-        curves,
-        curves,
-        cfg,
-        k=K,
-        workers=p["workers"],
-        cache_dir=p["cache_dir"],
-        block=p["block"],
-        progress=progress,
-        stats=kstats,
-    )
-    D = np.full((n, n), np.inf)
-    np.put_along_axis(D, idx, dist, axis=1)
-    full = int(kstats["full"])
-    if name == "swedish_leaf":
-        rows = _rows_without_training(labels, idx, p)
+    # one cluster (or connection) for the search and the full rows after it
+    with open_scheduler(p["dask"]) as sched:
+        idx, dist = knn(
+            curves,
+            curves,
+            cfg,
+            k=K,
+            workers=p["workers"],
+            cache_dir=p["cache_dir"],
+            block=p["block"],
+            progress=progress,
+            stats=kstats,
+            scheduler=sched,
+        )
+        D = np.full((n, n), np.inf)
+        np.put_along_axis(D, idx, dist, axis=1)
+        full = int(kstats["full"])
+        rows = np.zeros(0, dtype=np.int64)
+        if name == "swedish_leaf":
+            rows = _rows_without_training(labels, idx, p)
         if rows.size:
-            from shapetree.retrieval._engine import distance_matrix
-
             D[rows] = distance_matrix(
-                [curves[i] for i in rows], curves, cfg, workers=p["workers"], progress=False
+                [curves[i] for i in rows],
+                curves,
+                cfg,
+                workers=p["workers"],
+                progress=False,
+                scheduler=sched,
             )
-            full += int(rows.size) * n * (1 if cfg.symmetrize in ("none", "reverse") else 2)
+            full += len(rows) * n * (1 if cfg.symmetrize in ("none", "reverse") else 2)
     stats.update(
         pairs=n * n,
         pairs_computed=full,
@@ -363,7 +367,8 @@ def _neighbour_matrix(
             "bound_seconds": round(kstats["bound_seconds"], 2),
             "full_seconds": round(kstats["full_seconds"], 2),
             "blocks_cached": kstats["blocks_cached"],
-            "rows_completed": int(rows.size) if name == "swedish_leaf" else 0,
+            "rows_completed": int(rows.size),
+            "engine": kstats["engine"],
         },
     )
     return D

@@ -46,6 +46,7 @@ from shapetree.matching._bound import BoundStack
 from shapetree.retrieval._engine import (
     _block_path,
     _cache_key,
+    _check_scheduler,
     _prep_models,
     _prep_targets,
     _resolve,
@@ -182,45 +183,60 @@ def _combine(fwd: np.ndarray | None, bwd: np.ndarray | None, sym: str) -> np.nda
     return np.maximum(fwd, bwd)
 
 
+Curves = tuple[list[np.ndarray], list[list[np.ndarray]]]
+
+
+def _prepared(
+    queries: Sequence[ArrayLike], database: Sequence[ArrayLike], cfg: MatchConfig
+) -> tuple[Curves | None, Curves | None]:
+    """The sampled curves of each direction the configuration needs, ``(fwd, bwd)``:
+    ``fwd = (query models, database targets)`` unless ``symmetrize="reverse"``, ``bwd =
+    (database models, query targets)`` unless ``symmetrize="none"``."""
+    fwd = bwd = None
+    if cfg.symmetrize != "reverse":
+        fwd = (_prep_models(queries, cfg, "query"), _prep_targets(database, cfg, "database curve"))
+    if cfg.symmetrize != "none":
+        bwd = (_prep_models(database, cfg, "database curve"), _prep_targets(queries, cfg, "query"))
+    return fwd, bwd
+
+
+def _pairs_key(fwd: Curves | None, bwd: Curves | None, cfg: MatchConfig, spec: str) -> str:
+    """Cache key: the engine's key of each direction's sampled curves and ``spec``."""
+    import hashlib
+
+    h = hashlib.sha256(spec.encode())
+    for curves in (fwd, bwd):
+        if curves is not None:
+            h.update(_cache_key(curves[0], curves[1], cfg).encode())
+    return h.hexdigest()
+
+
 class _Pairs:
     """Bounds and full costs of query x database pairs under one configuration.
 
-    The curves are prepared once; :meth:`bounds` and :meth:`costs` work on any subset of
-    the queries (a block of rows), so blocks can run in threads and be cached apart.
+    Built from the sampled curves of :func:`_prepared`; :meth:`bounds` and :meth:`costs`
+    work on any subset of the queries (a block of rows), so blocks can run in threads,
+    or as tasks on a Dask cluster (a ``_Pairs`` of the block's queries alone), and be
+    cached apart.
     """
 
     def __init__(
         self,
-        queries: Sequence[ArrayLike],
-        database: Sequence[ArrayLike],
+        fwd: Curves | None,
+        bwd: Curves | None,
         cfg: MatchConfig,
         keep_from: int | None,
         keep_top: int,
     ) -> None:
         self.cfg = cfg
         self.sym = cfg.symmetrize
-        self.nq, self.nd = len(queries), len(database)
         self.fwd = self.bwd = None
-        self._curves: list[tuple[list[np.ndarray], list[list[np.ndarray]]]] = []
-        if self.sym != "reverse":
-            qc = _prep_models(queries, cfg, "query")
-            dt = _prep_targets(database, cfg, "database curve")
-            self.fwd = _Direction(_models(qc, cfg), dt, cfg, keep_from, keep_top)
-            self._curves.append((qc, dt))
-        if self.sym != "none":
-            dc = _prep_models(database, cfg, "database curve")
-            qt = _prep_targets(queries, cfg, "query")
-            self.bwd = _Direction(_models(dc, cfg), qt, cfg, keep_from, keep_top)
-            self._curves.append((dc, qt))
-
-    def key(self, spec: str) -> str:
-        """Cache key: the engine's key of each direction's sampled curves and ``spec``."""
-        import hashlib
-
-        h = hashlib.sha256(spec.encode())
-        for models, targets in self._curves:
-            h.update(_cache_key(models, targets, self.cfg).encode())
-        return h.hexdigest()
+        if fwd is not None:
+            self.nq, self.nd = len(fwd[0]), len(fwd[1])
+            self.fwd = _Direction(_models(fwd[0], cfg), fwd[1], cfg, keep_from, keep_top)
+        if bwd is not None:
+            self.nq, self.nd = len(bwd[1]), len(bwd[0])
+            self.bwd = _Direction(_models(bwd[0], cfg), bwd[1], cfg, keep_from, keep_top)
 
     def bounds(self, rows: Sequence[int], workers: int = 1) -> np.ndarray:
         """``B[q, x] <= D[q, x]`` for the queries ``rows``, shape (len(rows), n_database)."""
@@ -327,7 +343,7 @@ def lower_bounds(
     workers = _check_int("workers", workers, 1)
     if len(queries) == 0 or len(database) == 0:
         raise ShapeTreeError("lower_bounds needs at least one query and one database curve")
-    pairs = _Pairs(queries, database, cfg, *_keep(cfg, keep_from, keep_top))
+    pairs = _Pairs(*_prepared(queries, database, cfg), cfg, *_keep(cfg, keep_from, keep_top))
     return pairs.bounds(range(len(queries)), workers)
 
 
@@ -391,6 +407,39 @@ def _knn_rows(
     return idx, out, done.sum(axis=1), timing
 
 
+def _block_result(
+    pairs: _Pairs, rows: list[int], k: int, step: int, workers: int
+) -> tuple[np.ndarray, dict[str, float]]:
+    """The block array of the queries ``rows`` (distances, indices exact in float64,
+    full matchings per query in ``[2, :, 0]``) and its timings."""
+    bi, bd, bf, bt = _knn_rows(pairs, rows, k, step, workers)
+    arr = np.zeros((3, len(rows), k))
+    arr[0], arr[1], arr[2, :, 0] = bd, bi, bf
+    return arr, bt
+
+
+def knn_block(
+    block: tuple[list | None, list | None],
+    shared: tuple[list | None, list | None],
+    cfg: MatchConfig,
+    keep_from: int | None,
+    keep_top: int,
+    k: int,
+    step: int,
+) -> tuple[np.ndarray, dict[str, float]]:
+    """One block of queries of :func:`knn`, from sampled curves alone (a Dask task).
+
+    ``block = (query models, query targets)`` of the block's queries and ``shared =
+    (database targets, database models)``, each ``None`` where the configuration's
+    direction does not need it (:func:`_prepared`). Returns what a thread computes for
+    the same rows: the block array and its timings."""
+    (qm, qt), (dt, dm) = block, shared
+    fwd = (qm, dt) if qm is not None else None
+    bwd = (dm, qt) if qt is not None else None
+    pairs = _Pairs(fwd, bwd, cfg, keep_from, keep_top)
+    return _block_result(pairs, list(range(pairs.nq)), k, step, 1)
+
+
 def knn(
     queries: Sequence[ArrayLike],
     database: Sequence[ArrayLike],
@@ -405,6 +454,7 @@ def knn(
     batch: int | None = None,
     cache_dir: str | os.PathLike[str] | None = None,
     block: int | None = None,
+    scheduler: Any = None,
     **options: Any,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The ``k`` nearest database shapes of every query, exactly as exhaustive search.
@@ -424,7 +474,8 @@ def knn(
     k : int
         Neighbours per query (at most the database size).
     workers : int
-        Threads (the kernels release the GIL): blocks of queries run side by side.
+        Threads (the kernels release the GIL): blocks of queries run side by side; not
+        used with ``scheduler``.
     progress : bool
         tqdm progress bar over the queries, with ETA.
     stats : dict, optional
@@ -448,7 +499,16 @@ def knn(
         sampled curves): a killed run resumes where it stopped.
     block : int, optional
         Queries per block (the unit of work, caching and resumption); default: the
-        queries split into a multiple of ``workers`` blocks of equal size, at most 32 each.
+        queries split into a multiple of ``workers`` blocks of equal size, at most 32 each
+        (with ``scheduler``: blocks of at most 32 queries, at least two per worker).
+    scheduler : None, str, distributed.Client or DaskScheduler
+        ``None``: threads in this process. Otherwise each block of queries is one task on
+        a ``dask.distributed`` cluster (a ``distributed.Client``, left open; a scheduler
+        address ``"tcp://host:8786"``; ``"local:N"``, a local cluster of N processes
+        started and closed for the call; or :func:`~shapetree.retrieval.open_scheduler`'s
+        value), as for :func:`~shapetree.retrieval.distance_matrix`: the database's
+        sampled curves are scattered once to every worker, this process writes the block
+        cache, and the result is bitwise the threaded one.
     **options
         :class:`~shapetree.matching.MatchConfig` fields changed on top of ``config``.
 
@@ -471,22 +531,27 @@ def knn(
         raise ShapeTreeError(f"knn needs at least one query and one database curve, got {nq}, {nd}")
     k = min(k, nd)
     step = nd if batch is None else _check_int("batch", batch, 1)
-    if block is None:
+    sched, owned = _check_scheduler(scheduler)
+    if block is None and sched is not None:
+        # eight blocks (at most 32 queries each), so that a few workers share them
+        # evenly; the cluster is not reached before the cache has been read
+        block = max(1, min(32, -(-nq // 8)))
+    elif block is None:
         # a multiple of `workers` blocks of equal size, at most 32 queries each, so that
         # no thread is left alone with the last block
         n_blocks = workers * -(-nq // (workers * 32))
         block = -(-nq // n_blocks)
     else:
         block = _check_int("block", block, 1)
-    pairs = _Pairs(queries, database, cfg, keep_from, keep_top)
     ranges = [(r0, min(nq, r0 + block)) for r0 in range(0, nq, block)]
     idx = np.empty((nq, k), dtype=np.int64)
     dist = np.empty((nq, k))
     full = np.zeros(nq, dtype=np.int64)
     timing = {"bound_seconds": 0.0, "full_seconds": 0.0, "rounds": 0}
-    folder = key = None
+    fwd, bwd = _prepared(queries, database, cfg)
+    key = _pairs_key(fwd, bwd, cfg, f"shapetree-knn k={k}")
+    folder = None
     if cache_dir is not None:
-        key = pairs.key(f"shapetree-knn k={k}")
         folder = Path(cache_dir) / f"knn-{key[:32]}"
         folder.mkdir(parents=True, exist_ok=True)
 
@@ -510,13 +575,8 @@ def knn(
         done_rows = nq - sum(r1 - r0 for r0, r1 in todo)
         bar = tqdm(total=nq, initial=done_rows, desc="nearest neighbours", unit="query")
     lock = threading.Lock()
-    inner = workers if len(todo) <= 1 else 1
 
-    def job(r0: int, r1: int) -> None:
-        bi, bd, bf, bt = _knn_rows(pairs, list(range(r0, r1)), k, step, inner)
-        # one array per block: distances, indices (exact in float64), full matchings
-        arr = np.zeros((3, r1 - r0, k))
-        arr[0], arr[1], arr[2, :, 0] = bd, bi, bf
+    def finish(r0: int, r1: int, arr: np.ndarray, bt: dict[str, float]) -> None:
         if folder is not None:
             write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
         with lock:
@@ -524,14 +584,49 @@ def knn(
             timing["bound_seconds"] += bt["bound_seconds"]
             timing["full_seconds"] += bt["full_seconds"]
             timing["rounds"] = max(timing["rounds"], bt["rounds"])
-            if bar is not None:
-                bar.update(r1 - r0)
 
     try:
-        _run([lambda r=r: job(*r) for r in todo], 1 if inner > 1 else workers)
+        if sched is not None and todo:
+            from shapetree.retrieval._dask import _knn_task, run_tasks
+
+            qm = fwd[0] if fwd is not None else None
+            qt = bwd[1] if bwd is not None else None
+            shared = (fwd[1] if fwd is not None else None, bwd[0] if bwd is not None else None)
+            search = (cfg, keep_from, keep_top, k, step)
+
+            def task_args(r0: int, r1: int, sh: Any) -> tuple:
+                qm_b = qm[r0:r1] if qm is not None else None
+                qt_b = qt[r0:r1] if qt is not None else None
+                return (qm_b, qt_b), sh, search
+
+            run_tasks(
+                sched,
+                _knn_task,
+                shared,
+                task_args,
+                todo,
+                name=f"shapetree-knn-{key[:24]}",
+                on_result=lambda r0, r1, res: finish(r0, r1, *res),
+                units=lambda r0, r1: r1 - r0,
+                bar=bar,
+            )
+        elif todo:
+            pairs = _Pairs(fwd, bwd, cfg, keep_from, keep_top)
+            inner = workers if len(todo) <= 1 else 1
+
+            def job(r0: int, r1: int) -> None:
+                arr, bt = _block_result(pairs, list(range(r0, r1)), k, step, inner)
+                finish(r0, r1, arr, bt)
+                if bar is not None:
+                    with lock:
+                        bar.update(r1 - r0)
+
+            _run([lambda r=r: job(*r) for r in todo], 1 if inner > 1 else workers)
     finally:
         if bar is not None:
             bar.close()
+        if owned and sched is not None:
+            sched.close()
     if stats is not None:
         n_full = int(full.sum())
         stats.update(
@@ -542,6 +637,7 @@ def knn(
             full_per_query=full.tolist(),
             blocks=len(ranges),
             blocks_cached=len(ranges) - len(todo),
+            engine="dask" if sched is not None else "threads",
             **timing,
         )
     return idx, dist
