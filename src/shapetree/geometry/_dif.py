@@ -97,6 +97,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from shapetree._numba_cache import install as _install_cache_locators
+
+# before the first njit below: every kernel module imports this one first, so every
+# cached shapetree kernel notices an edit of any kernel source (shapetree._numba_cache)
+_install_cache_locators()
+
 #: LLVM fast-math flags of every compiled kernel of the project: fast-math without
 #: ``nnan`` / ``ninf`` (no assumption that NaN or infinity never occur). Pass it as
 #: ``fastmath=set(FASTMATH)`` (numba takes a ``set``).
