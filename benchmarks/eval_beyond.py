@@ -85,6 +85,8 @@ PRUNED_FACTOR = 0.71
 NEIGHBOURS = {"swedish_leaf": 10}
 FULL_SIZE = {"kimia99": 99, "mpeg7": 1400, "swedish_leaf": 1125}
 MPEG7_BLOCK = 32
+#: file-name prefix of the worst-query grids (``<prefix>_<set>_worst.png``)
+PNG_PREFIX = "beyond_paper"
 
 
 def candidates() -> dict[str, MatchConfig]:
@@ -344,7 +346,7 @@ def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
         + (" --mpeg7-full" if args.mpeg7_full else "")
     )
     worst = sorted(range(nq), key=lambda j: (hits[j], j))[:8]
-    png = RESULTS / "beyond_paper_mpeg7_worst.png"
+    png = RESULTS / f"{PNG_PREFIX}_mpeg7_worst.png"
     from shapetree.plotting._retrieval import save_retrieval_grid
 
     D[np.arange(nq), np.arange(nq)] = 0.0
@@ -420,7 +422,7 @@ def full_run(name: str, cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
             if "neighbours" in arrays
             else combine(arrays["costs"], cfg.symmetrize)
         )
-        png = RESULTS / f"beyond_paper_{name}_worst.png"
+        png = RESULTS / f"{PNG_PREFIX}_{name}_worst.png"
         rec["worst_queries"] = [
             {"index": i, "name": Path(ds.paths[i]).name, "class": str(labels[i])}
             for i in worst_grid(name, D, labels, ds.curves, png)
