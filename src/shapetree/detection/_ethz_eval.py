@@ -37,17 +37,16 @@ import numpy as np
 from shapetree._atomic import atomic_write_bytes
 from shapetree._cache import cache_root, code_fingerprint
 from shapetree._errors import DatasetError, ShapeTreeError
+from shapetree.datasets._registry import ETHZ_CLASSES as _REGISTRY_CLASSES
 
 from ._detect import DetectParams, detect_detailed
 
 __all__ = ["evaluate_ethz", "ethz_root", "ETHZ_CLASSES", "dr_at_fppi", "dr_fppi_curve"]
 
-ETHZ_CLASSES = {
-    "applelogos": ("Applelogos", "applelogo"),
-    "bottles": ("Bottles", "bottle"),
-    "giraffes": ("Giraffes", "giraffe"),
-    "mugs": ("Mugs", "mug"),
-    "swans": ("Swans", "swan"),
+#: ``{class tag: (image folder, model file stem)}``: the dataset registry's table
+#: (``shapetree.datasets._registry.ETHZ_CLASSES``, keyed by folder) keyed by class tag.
+ETHZ_CLASSES: dict[str, tuple[str, str]] = {
+    tag: (folder, stem) for folder, (tag, stem) in _REGISTRY_CLASSES.items()
 }
 
 
@@ -57,8 +56,9 @@ def ethz_root(data_dir: str | os.PathLike[str] | None = None) -> Path:
     Parameters
     ----------
     data_dir : path-like or None
-        The folder itself, its parent ``ethz_shape/``, or the datasets root
-        holding ``ethz_shape/`` (default: env ``SHAPETREE_DATA``).
+        The folder itself, its parent ``ethz_shape/``, or the datasets root holding
+        ``ethz_shape/``; default: the datasets root (``$SHAPETREE_DATA``, else the default
+        data folder), as for every other dataset.
 
     Returns
     -------
@@ -67,17 +67,13 @@ def ethz_root(data_dir: str | os.PathLike[str] | None = None) -> Path:
     Raises
     ------
     DatasetError
-        If no such folder with ``models/`` is found.
+        If no such folder is found (the message says where it looked and how to get it).
     """
-    if data_dir is None:
-        data_dir = os.environ.get("SHAPETREE_DATA")
-        if not data_dir:
-            raise DatasetError("no data_dir given and SHAPETREE_DATA is not set")
-    d = Path(data_dir)
-    for cand in (d, d / "ETHZShapeClasses-V1.2", d / "ethz_shape" / "ETHZShapeClasses-V1.2"):
-        if (cand / "models").is_dir() and (cand / "Swans").is_dir():
-            return cand
-    raise DatasetError(f"ETHZ Shape Classes V1.2 not found under {d}")
+    from shapetree.datasets._ethz import ethz_root as dataset_root
+
+    if data_dir is not None and (Path(data_dir) / "ethz_shape").is_dir():
+        data_dir = Path(data_dir) / "ethz_shape"  # a datasets root
+    return dataset_root(data_dir)
 
 
 def _images(root: Path) -> list[tuple[str, str]]:
