@@ -6,6 +6,7 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import shapetree
@@ -86,3 +87,26 @@ def test_matching_scope_ignores_detection_sources(tmp_path):
     assert code_fingerprint("matching") != code_fingerprint("all")
     with pytest.raises(ValueError, match="scope"):
         code_fingerprint("detection")
+
+
+def test_distance_cache_key_follows_the_matching_scope(monkeypatch) -> None:
+    """The engine's block key changes with the matching code, not with the detection code
+    alone (the documented purpose of the ``"matching"`` scope)."""
+    from shapetree.matching import MatchConfig
+    from shapetree.retrieval._engine import _cache_key
+
+    curves = [np.c_[np.cos(t), np.sin(t)] for t in [np.linspace(0, 6, 20, endpoint=False)]]
+    cfg = MatchConfig(n_points=20)
+    key = _cache_key(curves, [curves], cfg)
+    real = _cache._cached_fingerprint
+
+    def edited(scope: str):
+        def fp(version: str, s: str) -> str:
+            return "0" * 64 if s == scope else real(version, s)
+
+        return fp
+
+    monkeypatch.setattr(_cache, "_cached_fingerprint", edited("all"))  # detection edited
+    assert _cache_key(curves, [curves], cfg) == key
+    monkeypatch.setattr(_cache, "_cached_fingerprint", edited("matching"))  # a kernel edited
+    assert _cache_key(curves, [curves], cfg) != key

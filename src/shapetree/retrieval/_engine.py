@@ -90,12 +90,14 @@ def _resolve(config: MatchConfig | str | None, options: dict, *sources: Any) -> 
 def _cache_key(
     models: list[np.ndarray], targets: list[list[np.ndarray]], config: MatchConfig
 ) -> str:
-    """SHA-256 of the code (package version and kernel sources), every option that changes
-    a directed cost, and the sampled curves."""
+    """SHA-256 of the code a cost depends on (package version and the ``"matching"`` scope
+    of :func:`shapetree._cache.code_fingerprint`, so that an edit of the detection code
+    does not invalidate a distance cache), every option that changes a directed cost, and
+    the sampled curves."""
     from shapetree._cache import code_fingerprint
 
     h = hashlib.sha256()
-    h.update(f"shapetree-dm {code_fingerprint()}\n".encode())
+    h.update(f"shapetree-dm {code_fingerprint('matching')}\n".encode())
     spec = config.as_dict()
     del spec["symmetrize"]  # blocks hold directed costs; symmetrizing happens afterwards
     h.update(json.dumps(spec, sort_keys=True).encode())
