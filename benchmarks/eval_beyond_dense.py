@@ -10,11 +10,11 @@ model's own triangles are compared). This script adds that sampling ("dense") to
 * ``(n_points, n_trees)`` in {(64, 1), (64, 3), (100, 1)} x ``symmetrize`` in {none, min,
   mean}, every other option as in ``eval_beyond.py`` (length power 1, band 3, mirror, one
   phase, Procrustes ``dif``, directed matcher). ``n100 T3`` was planned and left out once
-  ``n100 T1`` had measured 10.7 ms per pair on Kimia-99 (three times ``n100 T1`` without
-  the dense target): its subset tables alone would take about 25 min, and its full runs
+  ``n100 T1`` had measured 10.7 ms per pair on Kimia-99 (about five times ``n100 T1``
+  without the dense target): its subset tables alone would take about 25 min, and its full runs
   (over 5 h for either larger set on two cores) can never be a within-budget choice;
 * scored on the same selection subsets, pooled with the 21 earlier candidates (their
-  subset scores and seconds per pair read from ``results/beyond_paper.json`` and
+  subset scores read from ``results/beyond_paper.json`` and
   ``results/beyond_paper_extended.json``);
 * for each target set the rule of ``eval_beyond.py``: the best mean rank on the *other
   two* sets' subsets, among the candidates whose estimated full run fits ``--budget-min``
@@ -34,13 +34,15 @@ pairwise scores.
 Full scoring of the held-out choices (``--targets``): Kimia-99 exhaustive; Swedish leaf
 with the exact pruned search (``neighbours=10``); MPEG-7 on a class-stratified query
 sample (every ``--mpeg7-every``-th shape against all 1400, exact per query, the mean an
-estimate of the full bull's-eye with its standard error) unless ``--mpeg7-full``.
-Distance tables are cached (``--cache-dir``), so a killed run resumes.
+estimate of the full bull's-eye with its standard error) unless ``--mpeg7-full``. A
+target whose choice is the configuration ``eval_beyond.py`` already chose and scored keeps
+that record (``same_as``), not rerun. Distance tables are cached (``--cache-dir``), so a
+killed run resumes.
 
 Run::
 
     SHAPETREE_DATA=/work/shared/datasets nice python3 benchmarks/eval_beyond_dense.py \\
-        --targets kimia99 swedish_leaf mpeg7
+        --targets kimia99 mpeg7 swedish_leaf
 
 Writes ``benchmarks/results/beyond_paper_dense.json`` after every step and prints a table.
 """
@@ -67,8 +69,6 @@ DENSE = {"target_factor": 2, "segment_weight": 0.0}
 #: (n_points, n_trees) of the family; n100 T3 is left out (see the module docstring)
 GRID = ((64, 1), (64, 3), (100, 1))
 SYMMETRIZE = ("none", "min", "mean")
-#: pairs of each selection subset (for seconds per pair)
-SUBSET_PAIRS = {"kimia99": 99**2, "swedish_leaf": 150**2, "mpeg7": 140**2}
 
 
 def dense_candidates() -> dict[str, MatchConfig]:
@@ -89,72 +89,37 @@ def earlier_candidates() -> dict[str, MatchConfig]:
 
 
 def earlier_scores(orig: dict, extended: dict) -> dict[str, dict[str, dict[str, Any]]]:
-    """``{set: {label: {score, s_per_pair}}}`` of the 21 earlier candidates."""
+    """``{set: {label: {score}}}`` of the 21 earlier candidates (their subset scores)."""
     out: dict[str, dict[str, dict[str, Any]]] = {}
     for name in base.TARGETS:
-        spp = orig["seconds_per_pair"]
         for label, score in orig["selection_scores"][name].items():
-            n, t = label.split()[:2]
-            out.setdefault(name, {})[label] = {
-                "score": score,
-                "s_per_pair": spp.get(f"{name} {n} {t}"),
-            }
-        first = extended["first_run_table_seconds"][name]
+            out.setdefault(name, {})[label] = {"score": score}
         for label, rec in extended["new_candidates"][name].items():
-            tag = label.split(maxsplit=3)[3]
-            out[name][label] = {
-                "score": rec["score"],
-                "s_per_pair": first[tag] / SUBSET_PAIRS[name],
-            }
+            out[name][label] = {"score": rec["score"]}
     return out
 
 
 def dense_scores(cache: Path) -> tuple[dict, dict]:
-    """Subset scores of the dense family (``{set: {label: {score, s_per_pair[, ranks]}}}``)
-    and the seconds of each table's computation in this run (~0 when cached)."""
+    """Subset scores of the dense family (``{set: {label: {score[, ranks]}}}``) and the
+    seconds of each table's computation in this run (~0 when read from the cache)."""
     out: dict[str, dict[str, dict[str, Any]]] = {}
     seconds: dict[str, float] = {}
     for name in base.TARGETS:
         curves, labels = base.load_subset(name)
         for n, t in GRID:
             cfg = base.BASE.replace(n_points=n, n_trees=t, **DENSE)
-            stats: dict[str, Any] = {}
             t0 = time.perf_counter()
-            costs = directed_costs(curves, None, cfg, cache_dir=cache, progress=False, stats=stats)
+            costs = directed_costs(curves, None, cfg, cache_dir=cache, progress=False)
             dt = time.perf_counter() - t0
-            key = f"{name} n{n} T{t} dense"
-            seconds[key] = round(dt, 1)
-            spp = dt / SUBSET_PAIRS[name] if stats["pairs_computed"] == stats["pairs"] else None
+            seconds[f"{name} n{n} T{t} dense"] = round(dt, 1)
             for s in SYMMETRIZE:
                 D = combine(costs, s)
-                rec: dict[str, Any] = {
-                    "score": round(base.subset_score(name, D, labels), 3),
-                    "s_per_pair": spp,
-                }
+                rec: dict[str, Any] = {"score": round(base.subset_score(name, D, labels), 3)}
                 if name == "kimia99":
                     rec["ranks"] = [int(x) for x in base.kimia_ranks(D, labels)]
                 out.setdefault(name, {})[f"n{n} T{t} {s} dense"] = rec
                 print(f"{name:13s} n{n} T{t} {s:4s} dense {rec} ({dt:.0f} s)", flush=True)
     return out, seconds
-
-
-def _timing_file(cache: Path) -> Path:
-    """Seconds per pair of each dense table when first computed (kept beside the cache,
-    so a rerun that reads the tables still has their first-run times)."""
-    return cache / "dense_timing.json"
-
-
-def _record_timing(out: dict, cache: Path) -> None:
-    path = _timing_file(cache)
-    known = json.loads(path.read_text()) if path.exists() else {}
-    for name, recs in out.items():
-        for label, rec in recs.items():
-            key = f"{name} {label}"
-            if rec["s_per_pair"] is None:
-                rec["s_per_pair"] = known.get(key)
-            else:
-                known.setdefault(key, rec["s_per_pair"])
-    path.write_text(json.dumps(known, indent=1, sort_keys=True))
 
 
 def probe_seconds(cands: dict[str, MatchConfig], name: str) -> dict[str, float]:
@@ -227,7 +192,6 @@ def main(argv: list[str] | None = None) -> int:
     orig = json.loads((RESULTS / "beyond_paper.json").read_text())
     extended = json.loads((RESULTS / "beyond_paper_extended.json").read_text())
     dense, table_seconds = dense_scores(cache)
-    _record_timing(dense, cache)
     scores = earlier_scores(orig, extended)
     for name in base.TARGETS:
         scores[name].update(dense[name])
@@ -267,14 +231,11 @@ def main(argv: list[str] | None = None) -> int:
     for t, c in out["choices"].items():
         print(f"{t:13s} {c['within_budget']['chosen']:34s} {c['no_time_limit']['chosen']:26s}")
     base.PNG_PREFIX = "beyond_paper_dense"
-    ns = argparse.Namespace(mpeg7_full=args.mpeg7_full, mpeg7_every=args.mpeg7_every)
+    ns = argparse.Namespace(mpeg7_full=args.mpeg7_full, mpeg7_every=args.mpeg7_every, timing={})
     for target in args.targets:
         label = out["choices"][target]["within_budget"]["chosen"]
         cfg = cands[label]
         rec: dict[str, Any] = {"chosen": label, "config": cfg.as_dict()}
-        # Kimia-99's full matrix is its selection table: its first computation's time
-        spp = scores["kimia99"][label]["s_per_pair"]
-        ns.timing = {f"kimia99 n{cfg.n_points} T{cfg.n_trees}": spp}
         prev = orig["targets"].get(target, {})
         if prev.get("config") == cfg.as_dict() and "score" in prev:
             # the same configuration eval_beyond.py chose and scored: its record stands

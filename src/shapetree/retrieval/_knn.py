@@ -500,7 +500,7 @@ def knn(
     block : int, optional
         Queries per block (the unit of work, caching and resumption); default: the
         queries split into a multiple of ``workers`` blocks of equal size, at most 32 each
-        (with ``scheduler``: blocks of at most 32 queries, at least two per worker).
+        (with ``scheduler``: at least eight blocks, at most 32 queries each).
     scheduler : None, str, distributed.Client or DaskScheduler
         ``None``: threads in this process. Otherwise each block of queries is one task on
         a ``dask.distributed`` cluster (a ``distributed.Client``, left open; a scheduler
@@ -533,8 +533,8 @@ def knn(
     step = nd if batch is None else _check_int("batch", batch, 1)
     sched, owned = _check_scheduler(scheduler)
     if block is None and sched is not None:
-        # eight blocks (at most 32 queries each), so that a few workers share them
-        # evenly; the cluster is not reached before the cache has been read
+        # at least eight blocks, at most 32 queries each, so that a few workers share
+        # them evenly (the cluster's size is not known before it is reached)
         block = max(1, min(32, -(-nq // 8)))
     elif block is None:
         # a multiple of `workers` blocks of equal size, at most 32 queries each, so that
