@@ -68,12 +68,16 @@ def test_fingerprint_changes_with_any_relevant_source(tmp_path):
     assert _cache._fingerprint("1", tmp_path) == base
 
 
+def _copy_sources(dst: Path) -> None:
+    src = Path(_cache.__file__).resolve().parent
+    for pkg in (*FINGERPRINT_PACKAGES, "retrieval"):
+        shutil.copytree(src / pkg, dst / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+
+
 def test_matching_scope_ignores_detection_sources(tmp_path):
     """A distance cache or shape database (scope "matching") survives an edit of the
     detection code; the "all" scope (detection caches) does not."""
-    src = Path(_cache.__file__).resolve().parent
-    for pkg in FINGERPRINT_PACKAGES:
-        shutil.copytree(src / pkg, tmp_path / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    _copy_sources(tmp_path)
     scopes = _cache.FINGERPRINT_SCOPES
     before = {s: _cache._fingerprint("1", tmp_path, scopes[s]) for s in scopes}
     f = sorted((tmp_path / "detection").glob("*.py"))[0]
@@ -87,6 +91,39 @@ def test_matching_scope_ignores_detection_sources(tmp_path):
     assert code_fingerprint("matching") != code_fingerprint("all")
     with pytest.raises(ValueError, match="scope"):
         code_fingerprint("detection")
+
+
+@pytest.mark.parametrize("module", _cache.RETRIEVAL_CACHE_MODULES)
+def test_matching_scope_follows_the_retrieval_cache_modules(tmp_path, module):
+    """An edit of the engine, the pruned search or the shape database (what fills the
+    distance, neighbour and database caches) changes the "matching" scope, and leaves
+    the detection caches' "all" scope alone."""
+    _copy_sources(tmp_path)
+    scopes = _cache.FINGERPRINT_SCOPES
+    before = {s: _cache._fingerprint("1", tmp_path, scopes[s]) for s in scopes}
+    f = tmp_path / module
+    f.write_bytes(f.read_bytes() + b"\n# edited\n")
+    assert _cache._fingerprint("1", tmp_path, scopes["matching"]) != before["matching"]
+    assert _cache._fingerprint("1", tmp_path, scopes["all"]) == before["all"]
+
+
+def test_scopes_ignore_retrieval_modules_that_only_read_results(tmp_path):
+    """Protocols, scoring and re-ranking read cached costs; editing them recomputes
+    nothing."""
+    _copy_sources(tmp_path)
+    scopes = _cache.FINGERPRINT_SCOPES
+    before = {s: _cache._fingerprint("1", tmp_path, scopes[s]) for s in scopes}
+    for name in ("_evaluate.py", "_protocols.py", "_rerank.py", "_dask.py"):
+        f = tmp_path / "retrieval" / name
+        f.write_bytes(f.read_bytes() + b"\n# edited\n")
+    assert {s: _cache._fingerprint("1", tmp_path, scopes[s]) for s in scopes} == before
+
+
+def test_a_missing_scope_module_is_an_error(tmp_path):
+    _copy_sources(tmp_path)
+    (tmp_path / "retrieval" / "_knn.py").unlink()
+    with pytest.raises(RuntimeError, match="no sources"):
+        _cache._fingerprint("1", tmp_path, _cache.FINGERPRINT_SCOPES["matching"])
 
 
 def test_distance_cache_key_follows_the_matching_scope(monkeypatch) -> None:

@@ -18,19 +18,39 @@ from pathlib import Path
 
 import shapetree
 
-__all__ = ["FINGERPRINT_PACKAGES", "FINGERPRINT_SCOPES", "cache_root", "code_fingerprint"]
+__all__ = [
+    "FINGERPRINT_PACKAGES",
+    "FINGERPRINT_SCOPES",
+    "RETRIEVAL_CACHE_MODULES",
+    "cache_root",
+    "code_fingerprint",
+]
 
 #: Sub-packages whose source bytes enter :func:`code_fingerprint`: everything that can
 #: change a matching cost or a detection (matching, shape-trees, geometry, curve
 #: preparation, detection).
 FINGERPRINT_PACKAGES: tuple[str, ...] = ("curves", "detection", "geometry", "matching", "tree")
 
-#: The packages of each :func:`code_fingerprint` scope: ``"all"`` (detection caches) and
-#: ``"matching"`` (what a matching cost depends on: distance blocks, shape databases), so
-#: a change of the detection code does not invalidate a distance cache or a database.
+#: The retrieval modules whose code decides what a cached distance block, a cached
+#: neighbour list or a stored shape database holds: the engine (curve preparation, the
+#: block computation), the pruned search (bounds, pruning, kept candidates) and the shape
+#: database.  The rest of ``retrieval`` (protocols, scoring, re-ranking, the Dask
+#: submission loop) reads those results and does not change them.
+RETRIEVAL_CACHE_MODULES: tuple[str, ...] = (
+    "retrieval/_engine.py",
+    "retrieval/_index.py",
+    "retrieval/_knn.py",
+)
+
+#: The sources of each :func:`code_fingerprint` scope (a sub-package, or one module as
+#: ``"package/module.py"``): ``"all"`` (detection caches: matching and detection code)
+#: and ``"matching"`` (what a matching cost and the retrieval caches built on it depend
+#: on: distance blocks, neighbour lists, shape databases), so a change of the detection
+#: code does not invalidate a distance cache or a database, a change of the engine does,
+#: and a change of the retrieval engine does not invalidate a detection cache.
 FINGERPRINT_SCOPES: dict[str, tuple[str, ...]] = {
     "all": FINGERPRINT_PACKAGES,
-    "matching": ("curves", "geometry", "matching", "tree"),
+    "matching": ("curves", "geometry", "matching", "tree") + RETRIEVAL_CACHE_MODULES,
 }
 
 
@@ -45,22 +65,32 @@ def cache_root() -> Path:
     return Path("~/.cache/shapetree").expanduser()
 
 
-def _fingerprint(version: str, root: Path, packages: tuple[str, ...] = FINGERPRINT_PACKAGES) -> str:
-    """SHA-256 over ``version`` and the ``*.py`` files of ``packages``.
+def _sources(root: Path, entry: str) -> list[Path]:
+    """The files of one scope entry: a package's ``*.py`` (sorted) or one module."""
+    if entry.endswith(".py"):
+        files = [root / entry] if (root / entry).is_file() else []
+    else:
+        files = sorted((root / entry).glob("*.py"), key=lambda p: p.name)
+    if not files:
+        raise RuntimeError(f"code_fingerprint: no sources found for {root / entry}")
+    return files
 
-    Files are taken in sorted order of their path relative to ``root``; each contributes
-    its relative path, its length and its bytes, so renames, moves and edits all count.
+
+def _fingerprint(version: str, root: Path, packages: tuple[str, ...] = FINGERPRINT_PACKAGES) -> str:
+    """SHA-256 over ``version`` and the sources of ``packages``.
+
+    ``packages`` holds sub-packages (all their ``*.py``) and single modules
+    (``"package/module.py"``), taken in the given order, a package's files sorted by
+    name; each file contributes its path relative to ``root``, its length and its bytes,
+    so renames, moves and edits all count.
     """
     h = hashlib.sha256()
     h.update(b"shapetree-code-fingerprint\0")
     h.update(version.encode("utf-8") + b"\0")
     for pkg in packages:
-        files = sorted((root / pkg).glob("*.py"), key=lambda p: p.name)
-        if not files:
-            raise RuntimeError(f"code_fingerprint: no sources found in {root / pkg}")
-        for f in files:
+        for f in _sources(root, pkg):
             data = f.read_bytes()
-            rel = f"{pkg}/{f.name}".encode()
+            rel = f.relative_to(root).as_posix().encode()
             h.update(rel + b"\0" + str(len(data)).encode("ascii") + b"\0")
             h.update(data)
     return h.hexdigest()
@@ -79,8 +109,10 @@ def code_fingerprint(scope: str = "all") -> str:
     scope : {"all", "matching"}
         ``"all"``: the bytes of every ``*.py`` in ``shapetree.matching``,
         ``shapetree.tree``, ``shapetree.geometry``, ``shapetree.curves`` and
-        ``shapetree.detection``; ``"matching"``: the same without ``detection`` (what a
-        matching cost depends on). Sorted, deterministic, computed once per process,
+        ``shapetree.detection`` (what a detection depends on); ``"matching"``: the same
+        without ``detection`` and with the retrieval modules that fill the retrieval
+        caches (:data:`RETRIEVAL_CACHE_MODULES`; what a matching cost and the retrieval
+        caches depend on). Sorted, deterministic, computed once per process,
         version and scope.
 
     Key caches by it so that they can never silently reuse stale results after an upgrade

@@ -352,11 +352,13 @@ def _progress_tick(topic: str | None, rows: tuple[int, int]) -> Callable[[int], 
 
 
 def _check_code(fingerprint: str) -> None:
-    """Refuse to run on a worker whose shapetree code is not the client's."""
+    """Refuse to run on a worker whose shapetree code is not the client's (the
+    ``"matching"`` scope of the code fingerprint: the code that decides a distance block
+    or a neighbour list, what the client caches under that fingerprint)."""
     import shapetree
     from shapetree._cache import code_fingerprint
 
-    mine = code_fingerprint()
+    mine = code_fingerprint("matching")
     if mine != fingerprint:
         raise ShapeTreeError(
             f"Dask worker runs other shapetree code (version {shapetree.__version__}, code "
@@ -501,7 +503,7 @@ def run_tasks(
     from shapetree._cache import code_fingerprint
 
     client = scheduler.client()
-    fingerprint = code_fingerprint()
+    fingerprint = code_fingerprint("matching")
     lock = threading.Lock()
     reported: dict[tuple[int, int], int] = {}
     finished: set[tuple[int, int]] = set()
