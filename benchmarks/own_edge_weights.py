@@ -71,8 +71,8 @@ def forms(path: Path) -> np.ndarray:
     """``(K, 3, H, W)``: the ``(a, b, c)`` form of every key, at the image's size."""
     lab = _as_channels(load_image(path))
     h, w = lab.shape[:2]
-    f = min(1.0, B.MAX_SIDE / max(h, w))
-    if f < 1.0:
+    f = B.working_scale(h, w)
+    if f != 1.0:
         lab = ndimage.zoom(lab, (f, f, 1), order=1, mode="nearest")
     chans = B._channels(lab)
     out = []
@@ -84,7 +84,7 @@ def forms(path: Path) -> np.ndarray:
         top = 0.5 * (a + cc) + np.sqrt(0.25 * (a - cc) ** 2 + b**2)
         k = np.minimum(1.0, 1.0 / np.maximum(top, 1e-12))
         t3 = [a * k, b * k, cc * k]
-        if f < 1.0:
+        if f != 1.0:
             z = (h / a.shape[0], w / a.shape[1])
             t3 = [ndimage.zoom(x, z, order=1, mode="nearest")[:h, :w] for x in t3]
         out.append(np.stack(t3).astype(np.float32))

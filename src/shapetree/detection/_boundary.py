@@ -30,23 +30,37 @@ computes those cues with NumPy / SciPy / scikit-image only, no learned weights:
    method), then a fixed affine map to ``[0, 1]``: ``p = clip((E - E_OFFSET) / E_RANGE,
    0, 1)``, no per-image normalisation (a picture of texture does not get strong edges
    just because it has no boundary); values under ``floor`` set to 0.  The two constants
-   were set once so that on 20 ETHZ images (4 per class) the share of pixels above 0.05,
+   were first set so that on 20 ETHZ images (4 per class) the share of pixels above 0.05,
    0.15, 0.3 and 0.5 is, in the median, the share of the shipped Pb maps (thinned
-   energies 0.19, 0.26, 0.33, 0.46 there), so the contour tracer's thresholds, chosen on
-   Pb, mean the same on this map.  The weights and scales were chosen on 15 other ETHZ
-   images by the F-measure (2 px tolerance) of the thresholded map against the Pb map
-   (brightness alone 0.81, the gradient method 0.73, the weights below 0.84), with
+   energies 0.19, 0.26, 0.33, 0.46 there; 0.155 / 0.61), so the contour tracer's
+   thresholds, chosen on Pb, mean the same on this map.  When every image came to be
+   processed at ``WORK_SIDE`` (below; earlier, images were only reduced, never
+   enlarged), they were carried over (``benchmarks/own_edge_calibration.py``): the new
+   constants give the new energies the pixel shares the earlier ones gave the earlier
+   energies on 20 ETHZ images, so the change of scale is the only change.  The weights
+   and scales were chosen (under the earlier scale rule) on 15 other ETHZ images by the
+   F-measure (2 px tolerance) of the thresholded map against the Pb map (brightness
+   alone 0.81, the gradient method 0.73, the weights below 0.84), with
    the texture weight kept high enough that a boundary between two textures of the
    same brightness histogram (vertical against horizontal stripes) is an edge; no
    ground-truth boxes were used.  A boundary that only one cue sees is capped by that
-   cue's weight: at most ``(w - E_OFFSET) / E_RANGE``, i.e. 0.40 for brightness alone in
-   a colour image (0.89 in a greyscale one, where ``L`` carries the colour weights too),
-   0.24 for texture alone, 0.24 for a colour change in both ``a`` and ``b``, and nothing
+   cue's weight: at most ``(w - E_OFFSET) / E_RANGE``, i.e. 0.29 for brightness alone in
+   a colour image (0.72 in a greyscale one, where ``L`` carries the colour weights too),
+   0.15 for texture alone, 0.15 for a colour change in both ``a`` and ``b``, and nothing
    for a change in ``a`` or ``b`` alone at equal brightness.
 
 Every filter is separable (:func:`scipy.ndimage.gaussian_filter1d` on stacks of bin
-images, float32); images are processed at most ``MAX_SIDE`` px on their longer side
-(larger ones are reduced for the cues and the result is resized back).
+images, float32).
+
+**Scale.** Every image is resampled so that its longer side is ``WORK_SIDE`` px for the
+cues (reduced or enlarged, bilinear), and the map is brought back to the image (a
+reduced image's energy interpolated, an enlarged one's thinned and then pooled by its
+maximum in each image pixel, see :func:`_pooled`), so the
+half-disc scales are fixed fractions of the image (``σ = 2 px`` is 1/320 of the longer
+side), as Pb's disc radii are fractions of the image diagonal.  With fixed pixel scales,
+a small image (ETHZ has images from 170 x 255 px) would get discs several times larger
+relative to its objects: a giraffe's legs then fall inside one disc and lose their
+boundary.
 """
 
 from __future__ import annotations
@@ -62,6 +76,8 @@ __all__ = [
     "boundary_energy",
     "textons",
     "soft_bins",
+    "thinned_energy",
+    "working_scale",
     "halfdisc_chi2_reference",
     "WEIGHTS",
     "SCALES",
@@ -87,10 +103,10 @@ TEXTURE_SCALES = (8.0, 16.0)
 #: the scales (divided by their number).
 WEIGHTS = {"L": 0.4, "a": 0.15, "b": 0.15, "texture": 0.3}
 #: ``p = clip((E - E_OFFSET) / E_RANGE, 0, 1)`` (see the module docstring, step 4).
-E_OFFSET = 0.155
-E_RANGE = 0.61
-#: Longer image side processed (px).
-MAX_SIDE = 640
+E_OFFSET = 0.1922
+E_RANGE = 0.7069
+#: Longer image side at which the cues are computed (px); every image is resampled to it.
+WORK_SIDE = 640
 _KMEANS_SAMPLE = 6000
 _EPS = 1e-4
 
@@ -309,6 +325,79 @@ def boundary_energy(
     return energy, np.cos(theta), np.sin(theta), per_cue
 
 
+def working_scale(h: int, w: int) -> float:
+    """Factor by which an ``h x w`` image is resampled for the cues (longer side to
+    :data:`WORK_SIDE`)."""
+    return WORK_SIDE / max(h, w)
+
+
+def _pooled(
+    energy: NDArray, nx: NDArray, ny: NDArray, shape: tuple[int, int], thin: bool
+) -> NDArray[np.float64]:
+    """An enlarged image's energy brought back to the image's ``shape``: thinned at the
+    working size, then each image pixel keeps the strongest response inside it (its
+    normal the energy-weighted mean of the double angles there), then thinned again.
+    Sampling the working-size map at the pixel centres instead would miss a thin peak
+    lying between two of them (a sharp step in a 40 px image came out at 0.67, not 1)."""
+    from ._edges import _nms
+
+    h, w = shape
+    if thin:
+        energy = _nms(energy, nx, ny)
+    ang = 2.0 * np.arctan2(ny, nx)
+    c2, s2 = energy * np.cos(ang), energy * np.sin(ang)
+    # first working row / column inside each image row / column
+    rows = np.searchsorted((np.arange(energy.shape[0]) + 0.5) * h / energy.shape[0], np.arange(h))
+    cols = np.searchsorted((np.arange(energy.shape[1]) + 0.5) * w / energy.shape[1], np.arange(w))
+    pooled = np.maximum.reduceat(np.maximum.reduceat(energy, rows, axis=0), cols, axis=1)
+    pc = np.add.reduceat(np.add.reduceat(c2, rows, axis=0), cols, axis=1)
+    ps = np.add.reduceat(np.add.reduceat(s2, rows, axis=0), cols, axis=1)
+    theta = 0.5 * np.arctan2(ps, pc)
+    if thin:
+        pooled = _nms(pooled, np.cos(theta), np.sin(theta))
+    return pooled
+
+
+def thinned_energy(lab: NDArray[np.float64], *, thin: bool = True) -> NDArray[np.float64]:
+    """The combined boundary energy of a Lab image at the image's size, before the affine
+    map to ``[0, 1]`` (cues at :data:`WORK_SIDE`, resized back, then thinned).
+
+    Parameters
+    ----------
+    lab : ndarray, shape (H, W, 3) or (H, W, 1)
+        CIE-Lab channels.
+    thin : bool
+        Non-maximum suppression across the boundary normal.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float64
+        The best orientation's weighted χ² (see :func:`boundary_energy`).
+    """
+    from ._edges import _nms
+
+    h, w = lab.shape[:2]
+    f = working_scale(h, w)
+    work = lab
+    if f != 1.0:
+        work = ndimage.zoom(lab, (f, f, 1), order=1, mode="nearest")
+    energy, nx, ny, _ = boundary_energy(work)
+    if f > 1.0:
+        return _pooled(energy, nx, ny, (h, w), thin)
+    if f != 1.0:
+        zoom = (h / energy.shape[0], w / energy.shape[1])
+        energy = ndimage.zoom(energy, zoom, order=1, mode="nearest")
+        ang = np.arctan2(ny, nx) * 2.0  # double angle: the normal's sign is arbitrary
+        c2 = ndimage.zoom(np.cos(ang), zoom, order=1, mode="nearest")
+        s2 = ndimage.zoom(np.sin(ang), zoom, order=1, mode="nearest")
+        theta = 0.5 * np.arctan2(s2, c2)
+        nx, ny = np.cos(theta), np.sin(theta)
+        energy, nx, ny = energy[:h, :w], nx[:h, :w], ny[:h, :w]
+    if thin:
+        energy = _nms(energy, nx, ny)
+    return energy
+
+
 def boundary_map(
     lab: NDArray[np.float64], *, thin: bool = True, floor: float = 0.02
 ) -> NDArray[np.float64]:
@@ -327,26 +416,7 @@ def boundary_map(
     -------
     ndarray, shape (H, W), float64
     """
-    from ._edges import _nms
-
-    h, w = lab.shape[:2]
-    f = min(1.0, MAX_SIDE / max(h, w))
-    work = lab
-    if f < 1.0:
-        work = ndimage.zoom(lab, (f, f, 1), order=1, mode="nearest")
-    energy, nx, ny, _ = boundary_energy(work)
-    if f < 1.0:
-        zoom = (h / energy.shape[0], w / energy.shape[1])
-        energy = ndimage.zoom(energy, zoom, order=1, mode="nearest")
-        ang = np.arctan2(ny, nx) * 2.0  # double angle: the normal's sign is arbitrary
-        c2 = ndimage.zoom(np.cos(ang), zoom, order=1, mode="nearest")
-        s2 = ndimage.zoom(np.sin(ang), zoom, order=1, mode="nearest")
-        theta = 0.5 * np.arctan2(s2, c2)
-        nx, ny = np.cos(theta), np.sin(theta)
-        energy, nx, ny = energy[:h, :w], nx[:h, :w], ny[:h, :w]
-    if thin:
-        energy = _nms(energy, nx, ny)
-    p = np.clip((energy - E_OFFSET) / E_RANGE, 0.0, 1.0)
+    p = np.clip((thinned_energy(lab, thin=thin) - E_OFFSET) / E_RANGE, 0.0, 1.0)
     p[p < floor] = 0.0
     return p
 
