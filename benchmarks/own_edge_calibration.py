@@ -38,7 +38,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, machine, write_json  # noqa: E402
-from own_edge_weights import CAL_THRESHOLDS, images  # noqa: E402
+from own_edge_weights import CAL_THRESHOLDS, images, share_levels  # noqa: E402
 
 from shapetree.detection import _boundary as B  # noqa: E402
 from shapetree.detection import load_edges, load_image  # noqa: E402
@@ -48,15 +48,7 @@ from shapetree.detection._ethz_eval import ethz_root  # noqa: E402
 
 def fit(energies: list[np.ndarray], pbs: list[np.ndarray]) -> dict:
     """``E_OFFSET``, ``E_RANGE`` and the matched quantiles (step 2 and 3)."""
-    target = np.median([[(p > t).mean() for t in CAL_THRESHOLDS] for p in pbs], axis=0)
-    qs = []
-    for j in range(len(CAL_THRESHOLDS)):
-        lo, hi = 0.0, 3.0
-        for _ in range(40):
-            q = 0.5 * (lo + hi)
-            share = np.median([(e > q).mean() for e in energies])
-            lo, hi = (q, hi) if share > target[j] else (lo, q)
-        qs.append(0.5 * (lo + hi))
+    target, qs = share_levels(energies, pbs)
     slope, off = np.polyfit(CAL_THRESHOLDS, qs, 1)
     return {
         "e_offset": round(float(off), 4),

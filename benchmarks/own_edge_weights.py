@@ -115,7 +115,10 @@ def f_measure(ours: np.ndarray, pb: np.ndarray, tol: float = 2.0) -> float:
     return float(np.mean(fs))
 
 
-def calibration(ths: list[np.ndarray], pbs: list[np.ndarray]) -> tuple[float, float]:
+def share_levels(ths: list[np.ndarray], pbs: list[np.ndarray]) -> tuple[np.ndarray, list[float]]:
+    """For each Pb strength in ``CAL_THRESHOLDS``: the median share of Pb pixels above it,
+    and the energy at which the median share of pixels of ``ths`` above it is the same
+    (bisection)."""
     target = np.median([[(p > t).mean() for t in CAL_THRESHOLDS] for p in pbs], axis=0)
     qs = []
     for j in range(len(CAL_THRESHOLDS)):
@@ -125,6 +128,12 @@ def calibration(ths: list[np.ndarray], pbs: list[np.ndarray]) -> tuple[float, fl
             share = np.median([(e > q).mean() for e in ths])
             lo, hi = (q, hi) if share > target[j] else (lo, q)
         qs.append(0.5 * (lo + hi))
+    return target, qs
+
+
+def calibration(ths: list[np.ndarray], pbs: list[np.ndarray]) -> tuple[float, float]:
+    """``(E_OFFSET, E_RANGE)``: the line through :func:`share_levels`' energies."""
+    _, qs = share_levels(ths, pbs)
     slope, off = np.polyfit(CAL_THRESHOLDS, qs, 1)
     return float(off), float(slope)
 
