@@ -175,12 +175,16 @@ def search(
                 w = best.copy()
                 w[j] = w[j] * fac if w[j] > 0 else (0.05 if fac == 2.0 else 0.0)
                 f = search_f(w, data, train)
-                if f > bf + 1e-4 and texture_floor is not None:
-                    if evaluate(w, data, train)["texture_only_cap"] < texture_floor:
-                        continue
-                    best, bf = w, f
-                    steps.append([sweep, f"{key[0]}:{key[1]:g}", fac, round(f, 4)])
-                    print(f"  sweep {sweep} {key} x{fac}: train F {f:.4f}", flush=True)
+                if f <= bf + 1e-4:
+                    continue
+                if (
+                    texture_floor is not None
+                    and evaluate(w, data, train)["texture_only_cap"] < texture_floor
+                ):
+                    continue
+                best, bf = w, f
+                steps.append([sweep, f"{key[0]}:{key[1]:g}", fac, round(f, 4)])
+                print(f"  sweep {sweep} {key} x{fac}: train F {f:.4f}", flush=True)
     return best, steps
 
 

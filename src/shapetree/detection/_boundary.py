@@ -384,7 +384,7 @@ def thinned_energy(lab: NDArray[np.float64], *, thin: bool = True) -> NDArray[np
     energy, nx, ny, _ = boundary_energy(work)
     if f > 1.0:
         return _pooled(energy, nx, ny, (h, w), thin)
-    if f != 1.0:
+    if f < 1.0:
         zoom = (h / energy.shape[0], w / energy.shape[1])
         energy = ndimage.zoom(energy, zoom, order=1, mode="nearest")
         ang = np.arctan2(ny, nx) * 2.0  # double angle: the normal's sign is arbitrary
