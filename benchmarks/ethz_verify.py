@@ -391,7 +391,9 @@ def _nested(best: dict) -> dict:
     }
 
 
-def _pairs(sc: _Scorer, score: np.ndarray, first: str) -> tuple[dict, dict]:
+def _pairs(
+    sc: _Scorer, score: np.ndarray, first: str, terms: tuple[str, ...] = TERMS
+) -> tuple[dict, dict]:
     """``score + w1 z(first) + w2 z(t)`` for every other term ``t``, both weights on
     ``W_GRID`` and chosen together leave-one-class-out (forward selection, one step).
 
@@ -401,7 +403,7 @@ def _pairs(sc: _Scorer, score: np.ndarray, first: str) -> tuple[dict, dict]:
     folds = {c: sc.cls != c for c in ETHZ_CLASSES}
     z1 = {c: _z(sc.col(first), score, tr) for c, tr in folds.items()}
     best_pair: dict = {}
-    for t in TERMS:
+    for t in terms:
         if t == first:
             continue
         v2 = sc.col(t)
@@ -433,7 +435,8 @@ def _pairs(sc: _Scorer, score: np.ndarray, first: str) -> tuple[dict, dict]:
     return out, _nested(best_pair)
 
 
-def analyse(sc: _Scorer) -> dict:
+def analyse(sc: _Scorer, terms: tuple[str, ...] = TERMS) -> dict:
+    """Every use of the ``terms`` (default :data:`TERMS`) listed in the module docstring."""
     score = sc.col("score")
     label = sc.col("iou") >= 0.2
     base = {c: sc.dr(c, score) for c in ETHZ_CLASSES}
@@ -445,14 +448,14 @@ def analyse(sc: _Scorer) -> dict:
         "auc": {},
         "single_term": {},
     }
-    for t in ("score",) + TERMS:
+    for t in ("score",) + terms:
         v = sc.col(t)
         pos, neg = label, ~label
         out["auc"][t] = {
             c: round(_auc(v[(sc.cls == c) & pos], v[(sc.cls == c) & neg]), 3) for c in ETHZ_CLASSES
         }
     best_single: dict = {}  # per fold: (training mean, [term, w], held-out DR) of the best
-    for t in TERMS:
+    for t in terms:
         v = sc.col(t)
         table = {}
         for c_out in ETHZ_CLASSES:
@@ -480,8 +483,8 @@ def analyse(sc: _Scorer) -> dict:
     # the term chosen inside each fold too: the honest estimate of "pick the best single
     # term", which the per-term rows overstate
     out["single_term_nested"] = _nested(best_single)
-    out["pair_with_context"], out["pair_with_context_nested"] = _pairs(sc, score, "context")
-    x = np.stack([sc.col(t) for t in ("score",) + TERMS], 1)
+    out["pair_with_context"], out["pair_with_context_nested"] = _pairs(sc, score, "context", terms)
+    x = np.stack([sc.col(t) for t in ("score",) + terms], 1)
     lr = {}
     for c_out in ETHZ_CLASSES:
         tr = sc.cls != c_out
