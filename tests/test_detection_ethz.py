@@ -102,6 +102,7 @@ def test_evaluate_ethz_cache_default_and_key(
     assert cache.parent == tmp_path / "c" / "ethz_detect"
     assert (cache / "swans" / "Swans__aal.json").is_file()
     assert first["overlap_20"]["recall_any_k"]["swans"] == 1.0
+    assert first["ranked_by"] == "score"  # one image: no collection to compare with
     assert not list(cache.rglob("*.tmp"))
 
     def no_detection(*args, **kwargs):
@@ -200,6 +201,32 @@ def test_recall_any_is_the_ceiling_of_the_curve() -> None:
     fppi, dr, _ = dr_fppi_curve(dets, gts, n_images=2, iou_thr=0.2)
     assert dr.max() == pytest.approx(recall_any(dets, gts, 0.2))
     assert recall_any([], {"a": np.zeros((0, 4))}, 0.5) == 0.0
+
+
+@needs_data
+def test_evaluate_ethz_collection_stage_reranks_the_cache(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Over several images the detections are ranked by their collection score, and
+    another ``appearance_check`` re-ranks the cached detections without detecting again
+    (the cache key leaves the collection fields out)."""
+    import shapetree.detection._ethz_eval as ev
+
+    imgs = [("Swans", "aal"), ("Swans", "blackneck"), ("Mugs", "apple")]
+    kw = dict(classes=["swans"], images=imgs, workers=1, progress=False, k=3)
+    kw["cache_dir"] = tmp_path / "c"
+    on = ev.evaluate_ethz(DATA, params=ev.DetectParams(appearance_check=0.4), **kw)
+    assert on["ranked_by"] == "collection_score" and on["params"]["appearance_check"] == 0.4
+    assert on["seconds_breakdown_median"]["appearance"] > 0
+
+    def no_detection(*args, **kwargs):
+        raise AssertionError("cached result not reused")
+
+    monkeypatch.setattr(ev, "detect_detailed", no_detection)
+    off = ev.evaluate_ethz(DATA, **kw)  # the default: off
+    assert off["cache_dir"] == on["cache_dir"] and off["ranked_by"] == "score"
+    assert off["overlap_20"]["recall_any_k"] == on["overlap_20"]["recall_any_k"]
+    assert off["seconds_breakdown_median"]["appearance"] == 0.0
 
 
 @needs_data

@@ -113,6 +113,38 @@ def test_batch_records_pictures_errors_and_resume(photos: dict, tmp_path: Path) 
     assert (s4.done, s4.skipped) == (0, 2)
 
 
+def test_batch_collection_ranking(photos: dict, tmp_path: Path) -> None:
+    """Two photos: every detection of both, ranked by score + appearance_check *
+    agreement, in ``ranking.json``; the per-image records do not depend on it."""
+    out = tmp_path / "out"
+    images = [photos["imgs"] / "scene1.png", photos["imgs"] / "scene2.png"]
+    kw = dict(out_dir=out, k=2, pictures=False, progress=False)
+    on = DetectParams(appearance_check=0.4)
+    s = detect_images(photos["model"], images, params=on, **kw)
+    doc = json.loads((out / "ranking.json").read_text())
+    assert s.ranking_path == out / "ranking.json" and doc["detections"] == s.ranking
+    n_dets = sum(len(r["detections"]) for r in s.records)
+    assert len(s.ranking) == n_dets and doc["n_images"] == 2
+    cs = [d["collection_score"] for d in s.ranking]
+    assert cs == sorted(cs, reverse=True)
+    for d in s.ranking:
+        rec = s.records[[str(i) for i in images].index(d["image"])]
+        assert d["score"] == rec["detections"][d["rank"]]["score"]
+        assert 0.0 <= d["appearance"] <= 1.0
+        assert d["collection_score"] == pytest.approx(d["score"] + 0.4 * d["appearance"], abs=1e-6)
+    # the collection weight is not part of a record's key: the images are skipped, and a
+    # ranking that no longer applies is removed (the default is off)
+    assert DetectParams().appearance_check == 0.0
+    off = detect_images(photos["model"], images, **kw)
+    assert (off.done, off.skipped) == (0, 2) and off.ranking == []
+    assert not (out / "ranking.json").exists()
+    # one image has nothing to compare with
+    one = detect_images(
+        photos["model"], images[:1], out_dir=tmp_path / "one", progress=False, params=on
+    )
+    assert one.ranking == [] and not (tmp_path / "one" / "ranking.json").exists()
+
+
 def test_jsonl_file_resumes_and_stdout(photos: dict, tmp_path: Path, capsys) -> None:
     target = tmp_path / "d.jsonl"
     imgs = [photos["imgs"] / "scene1.png", photos["imgs"] / "broken.jpg"]
@@ -200,3 +232,18 @@ def test_single_picture_form_uses_the_own_edges(photos: dict, tmp_path: Path, ca
     doc = json.loads(rec.read_text())
     assert doc["edges"] == "own" and doc["params"]["edge_method"] == "own"
     assert box_iou(doc["detections"][0]["bbox"], photos["boxes"]["scene1.png"]) >= 0.5
+
+
+def test_cli_collection_ranking(photos: dict, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "o"
+    imgs = [str(photos["imgs"] / "scene1.png"), str(photos["imgs"] / "scene2.png")]
+    args = ["detect", str(photos["model"]), *imgs, "-o", str(out), "-k", "1", "--no-pictures"]
+    code = main([*args, "--no-progress", "-p", "appearance_check=0.4"])
+    stdout, _ = capsys.readouterr()
+    assert code == 0 and "collection ranking of 2 detection(s) in 2 images" in stdout
+    assert f"ranking: {out / 'ranking.json'}" in stdout
+    doc = json.loads((out / "ranking.json").read_text())
+    assert doc["appearance_check"] == 0.4 and len(doc["detections"]) == 2
+    code = main([*args, "--no-progress", "-p", "appearance_check=-1"])
+    _, err = capsys.readouterr()
+    assert code == 2 and "appearance_check must be a finite number >= 0" in err

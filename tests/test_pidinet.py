@@ -356,10 +356,13 @@ def test_ethz_computed_edges_once_per_image(tmp_path: Path, monkeypatch) -> None
     assert first["seconds_breakdown_median"]["edges"] >= 0.5 * first["edge_map_seconds_median"] / 2
     again = ev.evaluate_ethz(DATA, **kw)
     assert len(calls) == 2 and again["overlap_20"] == first["overlap_20"]
-    # the Pb key stays the historical formula (no edge source, no edge_weights in it)
+    # the Pb key stays the historical formula (no edge source, no edge_weights, and none
+    # of the collection stage's fields, which never change a cached detection)
     import hashlib
     import json
 
-    doc = {"params": DetectParams().as_dict(), "k": 5, "code": ev.code_fingerprint()}
+    fields = DetectParams().as_dict(collection=False)
+    assert "appearance_check" not in fields and "edge_method" in fields
+    doc = {"params": fields, "k": 5, "code": ev.code_fingerprint()}
     blob = json.dumps(doc, sort_keys=True).encode()
     assert ev._params_key(DetectParams(), 5, "pb") == hashlib.sha256(blob).hexdigest()[:16]

@@ -33,6 +33,13 @@ model, parameters, edge source and image file is skipped (--force recomputes). A
 (unreadable, empty, too large) is reported on stderr, gets an error record, and the batch
 goes on; the exit status is then 1.
 
+--param appearance_check=0.4 (off by default) turns on the collection stage: with two or
+more images, all their detections are ranked together by collection score = score +
+appearance_check * (colour agreement of the inside of the outline with the most confident
+detections of the other images), written to DIR/ranking.json (or JSONL_STEM.ranking.json);
+each image's own scores do not change. It uses the other photos, never labels, and helps
+where the object looks alike from photo to photo.
+
 --edges: own (default) is the project's boundary detector on Pb's cues (brightness, colour
 and texture half-disc differences); gradient the plain colour gradient; pidinet the learned
 PiDiNet detector (Su et al., ICCV 2021), run with NumPy from the weights file given with
@@ -222,6 +229,19 @@ def cmd_detect(args: argparse.Namespace) -> int:
         f"{len(images)} image(s): {summary.done} detected, {summary.skipped} already done, "
         f"{summary.failed} failed ({summary.seconds:.1f} s)"
     )
+    if summary.ranking:
+        n = len({d["image"] for d in summary.ranking})
+        say(
+            f"collection ranking of {len(summary.ranking)} detection(s) in {n} images "
+            f"(score + appearance_check * colour agreement with the other images):"
+        )
+        for d in summary.ranking[:5]:
+            say(
+                f"  {d['collection_score']:9.4f}  {d['image']} #{d['rank']} "
+                f"(score {d['score']:.4f}, appearance {d['appearance']:.3f})"
+            )
+        if summary.ranking_path is not None:
+            say(f"ranking: {summary.ranking_path}")
     if out_dir is not None:
         say(f"output: {out_dir}")
     if args.jsonl is not None and not to_stdout:

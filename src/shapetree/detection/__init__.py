@@ -5,12 +5,20 @@ contour tracing (:func:`trace_contours`), contour-vs-model tables of §3
 (:func:`contour_tables`), the stitching DP with gaps (:func:`detect`, or
 :func:`detect_detailed` to keep the edge map and contours), and the verification of
 each kept detection by the shape-context agreement of its placed outline
-(:func:`context_agreement`). Models come from outline
+(:func:`context_agreement`). Over a collection of photos, detections are also ranked
+by the colour agreement of each with the most confident ones of the other photos
+(:func:`collection_scores`, :func:`appearance_agreement`). Models come from outline
 drawings, point files or arrays (:func:`load_model`, :func:`make_model`). The ETHZ Shape
 Classes protocol is :func:`evaluate_ethz` (DR against FPPI, :func:`dr_fppi_curve`).
 Pictures are drawn by :func:`shapetree.plotting.plot_detections`.
 """
 
+from shapetree.detection._appearance import (
+    appearance_agreement,
+    collection_scores,
+    colour_bins,
+    interior_histogram,
+)
 from shapetree.detection._contours import trace_contours
 from shapetree.detection._detect import (
     Detection,
@@ -36,6 +44,9 @@ __all__ = [
     "Detection",
     "DetectionModel",
     "DetectionRun",
+    "appearance_agreement",
+    "collection_scores",
+    "colour_bins",
     "context_agreement",
     "contour_tables",
     "detect",
@@ -44,6 +55,7 @@ __all__ = [
     "dr_at_fppi",
     "dr_fppi_curve",
     "edge_map",
+    "interior_histogram",
     "evaluate_ethz",
     "load_edges",
     "load_image",

@@ -25,6 +25,10 @@ from ._stitch import complete_matches, run_stitch
 from ._tables import contour_tables
 from ._verify import context_agreement
 
+#: the :class:`DetectParams` fields of the collection stage (several images, one model):
+#: they re-rank detections across images and never change one image's detections
+COLLECTION_FIELDS = ("appearance_check", "appearance_reference")
+
 __all__ = ["Detection", "DetectParams", "detect", "detect_detailed", "DetectionRun"]
 
 
@@ -129,6 +133,25 @@ class DetectParams:
         the one that leave-one-class-out selection on ETHZ picks most often, in
         three of five folds (0.25 standard deviations of the score per standard deviation of
         ``a``, i.e. 0.15; ``benchmarks/ethz_verify.py``).
+    appearance_check : float
+        Collection stage, used only where one model is searched over several images
+        (:func:`~shapetree.detection.evaluate_ethz`, ``shapetree detect MODEL IMAGES``
+        with two or more images, :func:`~shapetree.detection.collection_scores`): each
+        detection's *collection score* is its score plus ``appearance_check * g``,
+        where ``g`` in ``[0, 1]`` is the mean colour-histogram intersection of the
+        inside of its placed outline with the ``appearance_reference`` most confident
+        detections of the other images (``shapetree.detection._appearance``). A
+        detection's own ``score`` never depends on other images. Transductive: it uses
+        the other images of the collection, never their labels. Off by default (0.0):
+        on ETHZ (``benchmarks/ethz_appearance.py``) leave-one-class-out selection on
+        the Pb detections picks 0.4 (0.25 standard deviations of the score per standard
+        deviation of ``g``, beside the context term's default) in four of five folds,
+        and it lifts the Pb run, but with the project's own edge map it did not win
+        (see the README's detection section). It helps where the object looks alike
+        from photo to photo and hurts where it does not (apple logos of any colour).
+    appearance_reference : int
+        Size of the reference set of ``appearance_check``: the best detection of each
+        image by score, the ``appearance_reference`` best of those (10).
     edge_method : {"own", "gradient", "pidinet"}
         The :func:`edge_map` method used when no edge map is given ("own": the
         boundary detector on Pb's cues; "pidinet": the learned PiDiNet detector, from
@@ -174,6 +197,8 @@ class DetectParams:
     outline_check: float = 0.4
     frame_prior: float = 0.075
     context_check: float = 0.15
+    appearance_check: float = 0.0
+    appearance_reference: int = 10
     edge_method: str = "own"
     edge_weights: str | None = None
 
@@ -197,6 +222,20 @@ class DetectParams:
                 f"DetectParams.edge_weights is for edge_method in {WEIGHTED_METHODS}, "
                 f"not {self.edge_method!r}"
             )
+        ac, ar = self.appearance_check, self.appearance_reference
+        if (
+            isinstance(ac, bool)
+            or not isinstance(ac, numbers.Real)
+            or not np.isfinite(ac)
+            or ac < 0
+        ):
+            raise ShapeTreeError(
+                f"DetectParams.appearance_check must be a finite number >= 0, got {ac!r}"
+            )
+        if isinstance(ar, bool) or not isinstance(ar, numbers.Integral) or ar < 1:
+            raise ShapeTreeError(
+                f"DetectParams.appearance_reference must be an integer >= 1, got {ar!r}"
+            )
         lo, hi = self.contour_min_points, self.contour_max_points
         for field_name, v in (("contour_min_points", lo), ("contour_max_points", hi)):
             if isinstance(v, bool) or not isinstance(v, numbers.Integral):
@@ -211,11 +250,18 @@ class DetectParams:
                 f"DetectParams.contour_max_points ({hi}) must be >= contour_min_points ({lo})"
             )
 
-    def as_dict(self) -> dict[str, Any]:
-        """All parameters as a JSON-friendly dict (``edge_weights`` only when set)."""
+    def as_dict(self, collection: bool = True) -> dict[str, Any]:
+        """All parameters as a JSON-friendly dict (``edge_weights`` only when set).
+
+        ``collection=False`` leaves out the collection stage's fields
+        (:data:`COLLECTION_FIELDS`), which never change one image's detections: the
+        keys of per-image caches are made from that form."""
         d = dataclasses.asdict(self)
         if d["edge_weights"] is None:
             del d["edge_weights"]
+        if not collection:
+            for name in COLLECTION_FIELDS:
+                del d[name]
         return d
 
 

@@ -184,8 +184,15 @@ def dr_at_fppi(fppi: np.ndarray, dr: np.ndarray, at: float) -> float:
 
 
 def _params_key(params: DetectParams, k: int, edges: str = "pb") -> str:
-    """Cache sub-folder name: hash of the parameters, ``k``, the edge source and the code."""
-    doc: dict[str, Any] = {"params": params.as_dict(), "k": k, "code": code_fingerprint()}
+    """Cache sub-folder name: hash of the parameters, ``k``, the edge source and the code.
+
+    The collection stage's fields (``appearance_check``, ``appearance_reference``) are
+    left out: they re-rank the cached detections and never change them."""
+    doc: dict[str, Any] = {
+        "params": params.as_dict(collection=False),  # the collection stage is not cached
+        "k": k,
+        "code": code_fingerprint(),
+    }
     if edges != "pb":  # the Pb runs keep their historical key
         doc["edges"] = edges
     blob = json.dumps(doc, sort_keys=True)
@@ -228,6 +235,10 @@ STAGES = {
     "stitch": "stitching DP with gaps",
     "select": "verification and selection: reconstruction of each complete match, the "
     "holistic outline check and size prior of the ranking score, non-maximum suppression",
+    "appearance": "collection stage (appearance_check): the image read and its Lab colour "
+    "bins, the colour histogram inside each kept detection's outline, divided by the number "
+    "of models run on the image (done once per image); the agreements themselves are "
+    "computed once for the collection and not counted",
 }
 
 
@@ -376,6 +387,51 @@ def _run_one(
     return cls, folder, stem, doc
 
 
+def _appearance_one(task: tuple[str, str, str, dict[str, list]]) -> tuple[str, dict, float]:
+    """Worker: the interior colour histograms of every class's detections in one image."""
+    from ._appearance import colour_bins, interior_histogram
+    from ._edges import load_image
+
+    root_s, folder, stem, outlines = task
+    t0 = time.perf_counter()
+    bins = colour_bins(load_image(Path(root_s) / folder / f"{stem}.jpg"))
+    hists = {c: [interior_histogram(bins, pts) for pts in v] for c, v in outlines.items()}
+    return f"{folder}/{stem}", hists, time.perf_counter() - t0
+
+
+def _collection_rank(
+    results: dict[tuple[str, str, str], dict],
+    hists: dict[str, dict[str, list]],
+    cls_list: Sequence[str],
+    params: DetectParams,
+) -> None:
+    """Add ``appearance`` and ``collection_score`` to every detection (in place) and
+    re-order each image's detections by the collection score."""
+    from ._appearance import collection_scores
+
+    for c in cls_list:
+        items = [(key, doc) for key, doc in results.items() if key[0] == c]
+        keys, scores, hs = [], [], []
+        for (_c, f, s), doc in items:
+            for d, h in zip(doc["detections"], hists[f"{f}/{s}"][c], strict=True):
+                keys.append(f"{f}/{s}")
+                scores.append(d["score"])
+                hs.append(h)
+        if not keys:
+            continue
+        cs, ag = collection_scores(
+            keys, scores, np.array(hs), params.appearance_check, params.appearance_reference
+        )
+        i = 0
+        for key, doc in items:
+            dets = [dict(d) for d in doc["detections"]]
+            for d in dets:
+                d["appearance"], d["collection_score"] = float(ag[i]), float(cs[i])
+                i += 1
+            dets.sort(key=lambda d: -d["collection_score"])
+            results[key] = dict(doc, detections=dets)
+
+
 def evaluate_ethz(
     data_dir: str | os.PathLike[str] | None = None,
     *,
@@ -431,6 +487,15 @@ def evaluate_ethz(
         ``edges="pidinet"`` only (required there): a PiDiNet ``table5_*.npz`` weights
         file (the authors' BSDS500 checkpoints, research use only, not shipped).
 
+    Notes
+    -----
+    With ``params.appearance_check > 0`` (off by default) and more than one image, the
+    detections are ranked across images by their collection score (see
+    :func:`shapetree.detection.collection_scores`): after the detections, each image is
+    read once more for the colour histograms inside its detections' outlines. The
+    per-image cache holds the detections with their own scores only, so another
+    ``appearance_check`` re-ranks them without detecting again.
+
     Returns
     -------
     dict
@@ -442,7 +507,8 @@ def evaluate_ethz(
         source); ``n_images``, ``n_gt``, ``params``, ``k``, ``classes``; for a
         computed source also ``edge_map_seconds_median`` / ``_mean`` (one map per
         image, computed once; its share per model is in the ``edges`` stage) and, for
-        pidinet, ``edge_weights`` (file name, SHA-256, variant).
+        pidinet, ``edge_weights`` (file name, SHA-256, variant); ``ranked_by``
+        (``"collection_score"`` or ``"score"``).
     """
     if edges not in EDGE_SOURCES:
         raise ShapeTreeError(f"unknown edge source {edges!r}; choose one of {EDGE_SOURCES}")
@@ -493,6 +559,10 @@ def evaluate_ethz(
     ]
     results: dict[tuple[str, str, str], dict] = {}
     edge_secs: dict[str, float] = {}
+    # the collection stage: it needs another image to compare with
+    collection = params.appearance_check > 0 and len(imgs) > 1
+    hists: dict[str, dict[str, list]] = {}
+    app_secs: dict[str, float] = {}
     from tqdm import tqdm
 
     def _run(pool: Any) -> None:
@@ -510,6 +580,26 @@ def evaluate_ethz(
             for c, f, s, doc in imap(_run_one, tasks):
                 results[(c, f, s)] = doc
                 bar.update()
+        if collection:
+            a_tasks = [
+                (
+                    str(root),
+                    f,
+                    s,
+                    {
+                        c: [d["image_points"] for d in results[(c, f, s)]["detections"]]
+                        for c in cls_list
+                    },
+                )
+                for f, s in imgs
+            ]
+            with tqdm(
+                total=len(a_tasks), disable=not progress, desc="ETHZ appearance", unit="img"
+            ) as abar:
+                for key, h, sec in imap(_appearance_one, a_tasks):
+                    hists[key] = h
+                    app_secs[key] = sec
+                    abar.update()
 
     if workers <= 1:
         _warm_up()
@@ -522,12 +612,20 @@ def evaluate_ethz(
             _run(pool)
     # a computed edge map serves every model run on its image: each run carries its share
     share = {key: sec / len(cls_list) for key, sec in edge_secs.items()}
+    a_share = {key: sec / len(cls_list) for key, sec in app_secs.items()}
     for (_c, f, s), doc in results.items():
         extra = share.get(f"{f}/{s}", 0.0)
         if extra:
             doc = dict(doc, seconds=doc["seconds"] + extra)
             doc["timings"] = dict(doc["timings"], edges=doc["timings"].get("edges", 0.0) + extra)
-            results[(_c, f, s)] = doc
+        a = a_share.get(f"{f}/{s}", 0.0)
+        if a:
+            doc = dict(doc, seconds=doc["seconds"] + a)
+            doc["timings"] = dict(doc["timings"], appearance=a)
+        results[(_c, f, s)] = doc
+    if collection:
+        _collection_rank(results, hists, cls_list, params)
+    rank_by = "collection_score" if collection else "score"
 
     out: dict[str, Any] = {"overlap_20": {}, "overlap_50": {}}
     curves: dict[tuple[str, float], tuple[np.ndarray, np.ndarray]] = {}
@@ -540,7 +638,7 @@ def evaluate_ethz(
             gts = {f"{f}/{s}": _gt_boxes(root, f, s, c) for f, s in imgs if f == folder}
             n_gt_total[c] = int(sum(len(g) for g in gts.values()))
             dets = [
-                (f"{f}/{s}", d["score"], d["bbox"])
+                (f"{f}/{s}", d[rank_by], d["bbox"])
                 for f, s in imgs
                 for d in results[(c, f, s)]["detections"]
             ]
@@ -586,6 +684,14 @@ def evaluate_ethz(
     if weights_info is not None:
         out["edge_weights"] = weights_info
     out["edges"] = edges
+    out["ranked_by"] = rank_by
+    out["ranked_by_note"] = (
+        "collection_score = score + appearance_check * appearance: the collection stage "
+        "(transductive: each detection is compared with the most confident detections of "
+        "the same model in the other images, no labels used)"
+        if collection
+        else "score: each image's own ranking score (appearance_check = 0, or one image)"
+    )
     out["n_images"] = len(imgs)
     out["n_gt"] = n_gt_total
     out["k"] = k

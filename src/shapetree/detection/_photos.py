@@ -6,7 +6,9 @@ a JSON record and a Fig. 5-style picture into a folder, or JSON lines into a fil
 stream.  Runs are resumable: a record carries a key (hash of the model file, the
 parameters, ``k``, the edge source, the image file's path / size / modification time and
 the code fingerprint); an image whose record exists with the same key is skipped.  Every
-file goes through :mod:`shapetree._atomic`.  A bad image (unreadable, empty, too large, too
+file goes through :mod:`shapetree._atomic`.  With two or more images, the collection stage
+(:func:`collection_ranking`) ranks all their detections by appearance agreement as well
+(``ranking.json``).  A bad image (unreadable, empty, too large, too
 small) gives an error record and a message; the batch goes on and counts it.
 """
 
@@ -31,7 +33,14 @@ from ._detect import DetectParams, detect_detailed
 from ._edges import EDGE_METHODS, load_image
 from ._model import DetectionModel, load_model
 
-__all__ = ["IMAGE_EXTENSIONS", "BatchSummary", "collect_images", "detect_images", "natural_key"]
+__all__ = [
+    "IMAGE_EXTENSIONS",
+    "BatchSummary",
+    "collect_images",
+    "collection_ranking",
+    "detect_images",
+    "natural_key",
+]
 
 #: File extensions taken from folders (files named on the command line are always tried).
 IMAGE_EXTENSIONS = (
@@ -49,6 +58,8 @@ IMAGE_EXTENSIONS = (
 )
 
 RECORD_VERSION = 1
+#: base name of the collection ranking written beside the records (``ranking.json``)
+RANKING_NAME = "ranking"
 
 
 def natural_key(path: str | os.PathLike[str]) -> list[Any]:
@@ -130,9 +141,10 @@ def _image_stamp(path: Path) -> dict[str, Any]:
 
 
 def _record_names(images: Sequence[Path]) -> list[str]:
-    """One output base name per image: its stem, with ``-2``, ``-3``... on collisions."""
+    """One output base name per image: its stem, with ``-2``, ``-3``... on collisions
+    (``ranking`` is taken by the collection ranking, so ``ranking.jpg`` is ``ranking-2``)."""
     names: list[str] = []
-    used: dict[str, int] = {}
+    used: dict[str, int] = {RANKING_NAME: 1}
     for p in images:
         stem = re.sub(r"[^\w.+-]", "_", p.stem) or "image"
         n = used.get(stem.lower(), 0) + 1
@@ -153,6 +165,15 @@ class BatchSummary:
         is an error counts in both).
     records : list of dict
         The records of this call, in image order (skipped ones as read back).
+    ranking : list of dict
+        The collection stage (``params.appearance_check > 0`` and detections in two or
+        more images): every detection of the batch, best first by its collection score
+        (:func:`~shapetree.detection.collection_scores`), each with ``image``, ``rank``
+        (its index in the image's record), ``score``, ``appearance``,
+        ``collection_score`` and ``bbox``; empty otherwise.
+    ranking_path : Path or None
+        Where the ranking was written (``ranking.json`` in the output folder, else
+        ``<jsonl stem>.ranking.json`` beside the JSON-lines file), or None.
     seconds : float
     """
 
@@ -160,7 +181,52 @@ class BatchSummary:
     skipped: int = 0
     failed: int = 0
     records: list[dict[str, Any]] = field(default_factory=list)
+    ranking: list[dict[str, Any]] = field(default_factory=list)
+    ranking_path: Path | None = None
     seconds: float = 0.0
+
+
+def collection_ranking(
+    records: Sequence[dict[str, Any]], params: DetectParams, progress: bool = False
+) -> list[dict[str, Any]]:
+    """The collection stage over the records of a batch (see :class:`BatchSummary`).
+
+    Each image with detections is read again for the colour histograms inside their
+    outlines; an image that cannot be read now is left out of the ranking. Returns an
+    empty list where ``params.appearance_check`` is 0 or fewer than two images have a
+    detection.
+    """
+    from tqdm import tqdm
+
+    from ._appearance import collection_scores, colour_bins, interior_histogram
+
+    todo = [r for r in records if r.get("status") == "ok" and r.get("detections")]
+    if params.appearance_check <= 0 or len({r["image"] for r in todo}) < 2:
+        return []
+    keys, scores, hists, rows = [], [], [], []
+    for r in tqdm(todo, desc="appearance", unit="img", disable=not progress, file=sys.stderr):
+        try:
+            bins = colour_bins(load_image(r["image"]))
+        except (ShapeTreeError, OSError, MemoryError):
+            continue
+        for i, d in enumerate(r["detections"]):
+            keys.append(r["image"])
+            scores.append(float(d["score"]))
+            hists.append(interior_histogram(bins, d["image_points"]))
+            rows.append({"image": r["image"], "rank": i, "bbox": d["bbox"]})
+    if len(set(keys)) < 2:
+        return []
+    import numpy as np
+
+    cs, ag = collection_scores(
+        keys, scores, np.array(hists), params.appearance_check, params.appearance_reference
+    )
+    out = [
+        {**row, "score": s, "appearance": round(float(a), 6), "collection_score": float(c)}
+        for row, s, a, c in zip(rows, scores, ag, cs, strict=True)
+    ]
+    out.sort(key=lambda d: -d["collection_score"])
+    return out
 
 
 def _detection_record(det: Any) -> dict[str, Any]:
@@ -215,6 +281,16 @@ def detect_images(
     report : callable or None
         Receives one line per failed image (default: printed to stderr).
 
+    Notes
+    -----
+    After the images, the collection stage (``params.appearance_check > 0``; off by
+    default) with detections in two or more images ranks every detection of the batch
+    by its collection score (see :class:`BatchSummary`, :func:`collection_ranking`) and
+    writes that ranking atomically: ``ranking.json`` in ``out_dir``, else
+    ``<jsonl stem>.ranking.json`` beside a JSON-lines file (not for a stream). The
+    per-image records and their scores do not depend on the other images; the
+    ranking is made again on every call, from the records and the images.
+
     Returns
     -------
     BatchSummary
@@ -266,7 +342,7 @@ def detect_images(
     base_key = {
         "version": RECORD_VERSION,
         "model": model_desc,
-        "params": p.as_dict(),
+        "params": p.as_dict(collection=False),  # the collection stage is redone each run
         "k": k,
         "edges": edge_desc,
         "code": code_fingerprint(),
@@ -364,6 +440,33 @@ def detect_images(
             stream.write(json.dumps(record) + "\n")
             stream.flush()
     bar.close()
+    summary.ranking = collection_ranking(summary.records, p, progress=progress)
+    stale = [out / f"{RANKING_NAME}.json"] if out is not None else []
+    if jsonl_path is not None:
+        stale.append(jsonl_path.with_name(f"{jsonl_path.stem}.ranking.json"))
+    if not summary.ranking:  # a ranking of an earlier run would now mislead
+        for path in stale:
+            path.unlink(missing_ok=True)
+    else:
+        if out is not None:
+            summary.ranking_path = out / f"{RANKING_NAME}.json"
+        elif jsonl_path is not None:
+            summary.ranking_path = jsonl_path.with_name(f"{jsonl_path.stem}.ranking.json")
+        if summary.ranking_path is not None:
+            doc = {
+                "model": model_desc.get("file", model_desc.get("name")),
+                "n_images": len({d["image"] for d in summary.ranking}),
+                "appearance_check": p.appearance_check,
+                "appearance_reference": p.appearance_reference,
+                "note": "every detection of the batch, best first by collection_score = "
+                "score + appearance_check * appearance (colour agreement with the most "
+                "confident detections of the other images); score is the image's own",
+                "detections": summary.ranking,
+            }
+            blob = (json.dumps(doc, indent=1) + "\n").encode()
+            path = summary.ranking_path
+            if not (path.is_file() and path.read_bytes() == blob):  # a rerun touches nothing
+                atomic_write_bytes(path, blob, fsync=False)
     summary.seconds = time.perf_counter() - t_start
     return summary
 
