@@ -103,6 +103,7 @@ from shapetree.detection import (  # noqa: E402
     load_image,
     load_model,
 )
+from shapetree.detection._appearance import colour_bins, histogram  # noqa: E402
 from shapetree.detection._detect import frame_term  # noqa: E402
 from shapetree.detection._ethz_eval import (  # noqa: E402
     ETHZ_CLASSES,
@@ -178,25 +179,6 @@ def _edge_fields(e: np.ndarray) -> dict:
     }
 
 
-def _colour_bins(img: np.ndarray) -> np.ndarray:
-    from skimage.color import rgb2lab
-
-    if img.ndim == 2:
-        img = np.stack([img] * 3, -1)
-    lab = rgb2lab(np.clip(img[..., :3], 0.0, 1.0))
-    q = [
-        np.clip((lab[..., 0] / 100 * 8).astype(int), 0, 7),
-        np.clip(((lab[..., 1] + 60) / 120 * 8).astype(int), 0, 7),
-        np.clip(((lab[..., 2] + 60) / 120 * 8).astype(int), 0, 7),
-    ]
-    return (q[0] * 8 + q[1]) * 8 + q[2]
-
-
-def _hist(q: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    h = np.bincount(q[mask], minlength=512).astype(float)
-    return h / max(h.sum(), 1.0)
-
-
 def _terms(f: dict, q: np.ndarray, d: dict, model: np.ndarray, generic: dict) -> dict:
     """Every candidate term of one detection (see the module docstring)."""
     from skimage.draw import polygon as draw_polygon
@@ -240,7 +222,7 @@ def _terms(f: dict, q: np.ndarray, d: dict, model: np.ndarray, generic: dict) ->
     band = (dout > 2) & (dout < 2 + 0.2 * side)
     core = ndimage.distance_transform_edt(fig) > 2
     if core.sum() >= 10 and band.sum() >= 10:
-        hi, ho = _hist(q, core), _hist(q, band)
+        hi, ho = histogram(q, core), histogram(q, band)
         out["figure"] = float(0.5 * np.sum((hi - ho) ** 2 / (hi + ho + 1e-12)))
     else:
         out["figure"] = 0.0
@@ -299,7 +281,7 @@ def _image_rows(item: tuple[str, str]) -> list[dict]:
     else:
         e = edge_map(img, method="own")
     f = _edge_fields(e)
-    q = _colour_bins(img)
+    q = colour_bins(img)
     rows = []
     key = f"{folder}/{stem}"
     for cls in ETHZ_CLASSES:
