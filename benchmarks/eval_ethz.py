@@ -7,6 +7,7 @@ Usage::
     python3 benchmarks/eval_ethz.py --edges pidinet \
         --edge-weights ../shared/models/pidinet/table5_pidinet.npz  # -> results/ethz_pidinet.json
     python3 benchmarks/eval_ethz.py --calibrate-pidinet --edge-weights PATH  # P_KNOTS
+    python3 benchmarks/eval_ethz.py --param appearance_check=0.4 --json results/X.json
 
 Writes ``benchmarks/results/ethz.json`` (DR at 0.3 / 0.4 FPPI under the 20% and
 50% IoU rules, per class and mean; seconds per image; all parameters), the
@@ -40,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import machine  # noqa: E402
 
+from shapetree.cli._evaluate import key_value  # noqa: E402
 from shapetree.detection import DetectParams, evaluate_ethz  # noqa: E402
 
 
@@ -79,6 +81,16 @@ def main() -> None:
         help="figures (default results/ for pb, none for own: the figure names are shared)",
     )
     ap.add_argument(
+        "--param",
+        "-p",
+        action="append",
+        default=[],
+        type=key_value,
+        metavar="KEY=VALUE",
+        help="a DetectParams field other than its default (repeatable), e.g. "
+        "appearance_check=0.4; give --json too, the default names are the shipped runs'",
+    )
+    ap.add_argument(
         "--cache-dir",
         default=None,
         help="default: $SHAPETREE_CACHE/ethz_detect (else ~/.cache/shapetree/ethz_detect)",
@@ -88,6 +100,8 @@ def main() -> None:
         calibrate_pidinet(args.data, args.edge_weights, args.cache_dir)
         return
     results = REPO / "benchmarks" / "results"
+    if args.json is None and args.param:
+        raise SystemExit("--param changes the shipped parameters: name the result with --json")
     if args.json is None:
         name = {"pb": "ethz.json", "own": "ethz_own.json", "pidinet": "ethz_pidinet.json"}
         args.json = str(results / name[args.edges])
@@ -99,7 +113,7 @@ def main() -> None:
         out_dir=args.out_dir,
         classes=args.classes,
         cache_dir=args.cache_dir,
-        params=DetectParams(),
+        params=DetectParams(**dict(args.param)),
         k=args.k,
         workers=args.workers,
         edges=args.edges,
