@@ -67,6 +67,11 @@ from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # n
 #: size of a model's reference set (its most confident detections, one per image)
 M_REF = 10
 NEW_TERMS = ("appearance", "appearance_colour", "appearance_texture")
+#: the terms the detector itself has for every kept detection (the parts of its score, the
+#: shape context, the matched share, the margin to the image's best and the best one's
+#: lead) and the colour agreement of its collection stage: a logistic re-scorer on these
+#: alone could run inside the detector, one on all 21 terms could not
+PRODUCT_TERMS = ("context", "od", "frame", "coverage", "margin", "lead", "appearance_colour")
 _STATE: dict = {}
 
 
@@ -159,6 +164,9 @@ def main() -> None:
         rows = V.without_context(rows, args.context_check)
     sc = V._Scorer(root, rows, len(imgs))
     out = V.analyse(sc, V.TERMS + NEW_TERMS)
+    x = np.stack([sc.col(t) for t in ("score",) + PRODUCT_TERMS], 1)
+    sub = V._logistic_nested(sc, x, sc.col("iou") >= 0.2)
+    out["logistic_product_terms"] = {"terms": ["score", *PRODUCT_TERMS], **sub}
     print(f"edges {args.edges}: reference {out['reference']['overlap_20']['mean']:.4f}")
     for t in NEW_TERMS + ("context",):
         a = " ".join(f"{out['auc'][t][c]:.2f}" for c in ETHZ_CLASSES)
@@ -173,6 +181,11 @@ def main() -> None:
             f"{name:26s} {r['loco_overlap_20']['mean']:.4f} / {r['loco_overlap_50']['mean']:.4f}"
             f"  {r['loco_overlap_20']}  {r.get('chosen', r.get('l2_chosen'))}"
         )
+    r = out["logistic_product_terms"]["logistic_nested_l2"]
+    print(
+        f"logistic on score + {', '.join(PRODUCT_TERMS)}: {r['loco_overlap_20']['mean']:.4f} / "
+        f"{r['loco_overlap_50']['mean']:.4f}  {r['loco_overlap_20']}  {r['l2_chosen']}"
+    )
     for t in NEW_TERMS:
         r = out["pair_with_context"][t]
         print(
