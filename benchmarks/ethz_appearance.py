@@ -135,6 +135,22 @@ def add_appearance(rows: list[dict], hists: dict, m_ref: int = M_REF) -> None:
         del r["_rank"]
 
 
+def rows_with_appearance(
+    root: Path, imgs: list, detections: str | Path, rows_file: str | Path, workers: int
+) -> list[dict]:
+    """The terms pickle ``ethz_verify.py --rows`` wrote, with the three appearance terms
+    added (reference sets by the score the detector ranks with)."""
+    from tqdm import tqdm
+
+    rows = pickle.loads(Path(rows_file).read_bytes())
+    hists: dict = {}
+    with Pool(workers, initializer=_init, initargs=(str(root), str(detections))) as pool:
+        for h in tqdm(pool.imap(_image_hists, imgs), total=len(imgs), desc="looks", unit="img"):
+            hists.update(h)
+    add_appearance(rows, hists)
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
@@ -151,15 +167,7 @@ def main() -> None:
     t0 = time.perf_counter()
     root = ethz_root(args.data)
     imgs = _images(root)
-    rows = pickle.loads(Path(args.rows).read_bytes())
-    from tqdm import tqdm
-
-    hists: dict = {}
-    init = (str(root), str(args.detections))
-    with Pool(args.workers, initializer=_init, initargs=init) as pool:
-        for h in tqdm(pool.imap(_image_hists, imgs), total=len(imgs), desc="looks", unit="img"):
-            hists.update(h)
-    add_appearance(rows, hists)  # reference sets by the score the detector ranks with
+    rows = rows_with_appearance(root, imgs, args.detections, args.rows, args.workers)
     if args.without_context:
         rows = V.without_context(rows, args.context_check)
     sc = V._Scorer(root, rows, len(imgs))

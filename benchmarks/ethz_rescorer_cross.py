@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import pickle
 import sys
 import time
-from multiprocessing import Pool
 from pathlib import Path
 
 import numpy as np
@@ -40,15 +38,7 @@ from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # n
 
 def _source(root: Path, imgs: list, dets: str, rows_file: str, workers: int, context: float):
     """The scorer, the feature matrix (score + PRODUCT_TERMS) and the labels of one run."""
-    from tqdm import tqdm
-
-    rows = pickle.loads(Path(rows_file).read_bytes())
-    hists: dict = {}
-    with Pool(workers, initializer=A._init, initargs=(str(root), dets)) as pool:
-        for h in tqdm(pool.imap(A._image_hists, imgs), total=len(imgs), desc="looks", unit="img"):
-            hists.update(h)
-    A.add_appearance(rows, hists)
-    rows = V.without_context(rows, context)
+    rows = V.without_context(A.rows_with_appearance(root, imgs, dets, rows_file, workers), context)
     sc = V._Scorer(root, rows, len(imgs))
     x = np.stack([sc.col(t) for t in ("score",) + A.PRODUCT_TERMS], 1)
     return sc, x, sc.col("iou") >= 0.2

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
+
 from shapetree._atomic import atomic_write_bytes
 from shapetree._errors import ImageError, ShapeTreeError
 
@@ -216,8 +218,6 @@ def collection_ranking(
             rows.append({"image": r["image"], "rank": i, "bbox": d["bbox"]})
     if len(set(keys)) < 2:
         return []
-    import numpy as np
-
     cs, ag = collection_scores(
         keys, scores, np.array(hists), params.appearance_check, params.appearance_reference
     )
