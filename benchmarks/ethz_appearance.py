@@ -25,8 +25,10 @@ leave one class out; the term or pair chosen inside each fold too), beside them.
 The colour half is the detector's collection stage
 (:func:`shapetree.detection.collection_scores`, ``DetectParams.appearance_check``), and
 this script uses the same functions for it (``colour_bins``, ``interior_mask``); the
-reference set is made the same way. It ships off: it wins on the Pb detections, not with
-the own edge map (README, *Appearance consistency across the collection*).
+reference set is made the same way. Alone it is an option (it wins on the Pb detections,
+not with the own edge map); the shipped collection re-scorer is ``logistic_product_terms``
+below, fitted on all Pb detections (``ethz_rescorer_cross.py``; README, *The collection
+re-scorer*).
 
 **What it is, honestly.** A transductive re-ranking: the term of a giraffe detection
 uses the other giraffe-model detections of the same 255 images, but none of their

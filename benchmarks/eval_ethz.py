@@ -7,7 +7,7 @@ Usage::
     python3 benchmarks/eval_ethz.py --edges pidinet \
         --edge-weights ../shared/models/pidinet/table5_pidinet.npz  # -> results/ethz_pidinet.json
     python3 benchmarks/eval_ethz.py --calibrate-pidinet --edge-weights PATH  # P_KNOTS
-    python3 benchmarks/eval_ethz.py --param appearance_check=0.4 --json results/X.json
+    python3 benchmarks/eval_ethz.py --param collection_rescore=False --json results/X.json
 
 Writes ``benchmarks/results/ethz.json`` (DR at 0.3 / 0.4 FPPI under the 20% and
 50% IoU rules, per class and mean; seconds per image; all parameters), the
@@ -88,7 +88,7 @@ def main() -> None:
         type=key_value,
         metavar="KEY=VALUE",
         help="a DetectParams field other than its default (repeatable), e.g. "
-        "appearance_check=0.4; give --json too, the default names are the shipped runs'",
+        "collection_rescore=False; give --json too, the default names are the shipped runs'",
     )
     ap.add_argument(
         "--cache-dir",

@@ -207,26 +207,50 @@ def test_recall_any_is_the_ceiling_of_the_curve() -> None:
 def test_evaluate_ethz_collection_stage_reranks_the_cache(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Over several images the detections are ranked by their collection score, and
-    another ``appearance_check`` re-ranks the cached detections without detecting again
-    (the cache key leaves the collection fields out)."""
+    """Over several images the detections are ranked by their collection score (the
+    re-scorer by default), and other collection settings re-rank the cached detections
+    without detecting again (the cache key leaves the collection fields out)."""
     import shapetree.detection._ethz_eval as ev
+    from shapetree.detection import RESCORER_WEIGHTS
 
     imgs = [("Swans", "aal"), ("Swans", "blackneck"), ("Mugs", "apple")]
     kw = dict(classes=["swans"], images=imgs, workers=1, progress=False, k=3)
     kw["cache_dir"] = tmp_path / "c"
-    on = ev.evaluate_ethz(DATA, params=ev.DetectParams(appearance_check=0.4), **kw)
-    assert on["ranked_by"] == "collection_score" and on["params"]["appearance_check"] == 0.4
+    on = ev.evaluate_ethz(DATA, **kw)
+    assert on["ranked_by"] == "collection_score" and on["params"]["collection_rescore"]
+    assert "re-scorer" in on["ranked_by_note"]
     assert on["seconds_breakdown_median"]["appearance"] > 0
 
     def no_detection(*args, **kwargs):
         raise AssertionError("cached result not reused")
 
     monkeypatch.setattr(ev, "detect_detailed", no_detection)
-    off = ev.evaluate_ethz(DATA, **kw)  # the default: off
+    colour = ev.DetectParams(collection_rescore=False, appearance_check=0.4)
+    col = ev.evaluate_ethz(DATA, params=colour, **kw)
+    assert col["ranked_by"] == "collection_score" and col["cache_dir"] == on["cache_dir"]
+    off = ev.evaluate_ethz(DATA, params=ev.DetectParams(collection_rescore=False), **kw)
     assert off["cache_dir"] == on["cache_dir"] and off["ranked_by"] == "score"
     assert off["overlap_20"]["recall_any_k"] == on["overlap_20"]["recall_any_k"]
     assert off["seconds_breakdown_median"]["appearance"] == 0.0
+    # the re-ranked detections carry their terms, and the collection score is their form
+    results: dict = {}
+    real = ev._collection_rank
+
+    def keep(res, *args):
+        real(res, *args)
+        results.update(res)
+
+    monkeypatch.setattr(ev, "_collection_rank", keep)
+    ev.evaluate_ethz(DATA, **kw)
+    dets = [d for doc in results.values() for d in doc["detections"]]
+    assert len(dets) == 9
+    for d in dets:
+        want = d["base"] + sum(w * d[t] for t, w in RESCORER_WEIGHTS.items())
+        assert d["collection_score"] == pytest.approx(want)
+        assert d["base"] == pytest.approx(d["score"] - 0.15 * d["context"])
+    for doc in results.values():
+        cs = [d["collection_score"] for d in doc["detections"]]
+        assert cs == sorted(cs, reverse=True)
 
 
 @needs_data

@@ -81,7 +81,7 @@ def test_batch_records_pictures_errors_and_resume(photos: dict, tmp_path: Path) 
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(
         ["broken.json", "empty.json", "scene1.json", "scene1.png", "scene2.json"]
-        + ["scene2.png", "tiny.json"]
+        + ["scene2.png", "tiny.json", "ranking.json"]  # two good images: a collection
     )
     for name, box in photos["boxes"].items():
         rec = json.loads((out / name.replace(".png", ".json")).read_text())
@@ -114,15 +114,18 @@ def test_batch_records_pictures_errors_and_resume(photos: dict, tmp_path: Path) 
 
 
 def test_batch_collection_ranking(photos: dict, tmp_path: Path) -> None:
-    """Two photos: every detection of both, ranked by score + appearance_check *
-    agreement, in ``ranking.json``; the per-image records do not depend on it."""
+    """Two photos: every detection of both, ranked by the re-scorer's collection score
+    (the default) or by score + appearance_check * agreement, in ``ranking.json``; the
+    per-image records do not depend on it."""
+    from shapetree.detection import RESCORER_WEIGHTS
+
     out = tmp_path / "out"
     images = [photos["imgs"] / "scene1.png", photos["imgs"] / "scene2.png"]
     kw = dict(out_dir=out, k=2, pictures=False, progress=False)
-    on = DetectParams(appearance_check=0.4)
-    s = detect_images(photos["model"], images, params=on, **kw)
+    s = detect_images(photos["model"], images, **kw)
     doc = json.loads((out / "ranking.json").read_text())
     assert s.ranking_path == out / "ranking.json" and doc["detections"] == s.ranking
+    assert doc["collection_rescore"] is True and "re-scorer" in doc["note"]
     n_dets = sum(len(r["detections"]) for r in s.records)
     assert len(s.ranking) == n_dets and doc["n_images"] == 2
     cs = [d["collection_score"] for d in s.ranking]
@@ -130,18 +133,22 @@ def test_batch_collection_ranking(photos: dict, tmp_path: Path) -> None:
     for d in s.ranking:
         rec = s.records[[str(i) for i in images].index(d["image"])]
         assert d["score"] == rec["detections"][d["rank"]]["score"]
-        assert 0.0 <= d["appearance"] <= 1.0
+        assert 0.0 <= d["appearance"] <= 1.0 and d["margin"] <= 0.0 <= d["lead"]
+        want = d["base"] + sum(w * d[t] for t, w in RESCORER_WEIGHTS.items())
+        assert d["collection_score"] == pytest.approx(want, abs=1e-4)  # terms kept to 1e-6
+    colour = DetectParams(collection_rescore=False, appearance_check=0.4)
+    s = detect_images(photos["model"], images, params=colour, **kw)
+    assert (s.done, s.skipped) == (0, 2)  # the collection fields are not in the key
+    for d in s.ranking:
+        assert set(d) == {"image", "rank", "bbox", "score", "collection_score", "appearance"}
         assert d["collection_score"] == pytest.approx(d["score"] + 0.4 * d["appearance"], abs=1e-6)
-    # the collection weight is not part of a record's key: the images are skipped, and a
-    # ranking that no longer applies is removed (the default is off)
-    assert DetectParams().appearance_check == 0.0
+    # a ranking that no longer applies is removed
+    kw["params"] = DetectParams(collection_rescore=False)
     off = detect_images(photos["model"], images, **kw)
     assert (off.done, off.skipped) == (0, 2) and off.ranking == []
     assert not (out / "ranking.json").exists()
     # one image has nothing to compare with
-    one = detect_images(
-        photos["model"], images[:1], out_dir=tmp_path / "one", progress=False, params=on
-    )
+    one = detect_images(photos["model"], images[:1], out_dir=tmp_path / "one", progress=False)
     assert one.ranking == [] and not (tmp_path / "one" / "ranking.json").exists()
 
 
@@ -238,12 +245,22 @@ def test_cli_collection_ranking(photos: dict, tmp_path: Path, capsys) -> None:
     out = tmp_path / "o"
     imgs = [str(photos["imgs"] / "scene1.png"), str(photos["imgs"] / "scene2.png")]
     args = ["detect", str(photos["model"]), *imgs, "-o", str(out), "-k", "1", "--no-pictures"]
-    code = main([*args, "--no-progress", "-p", "appearance_check=0.4"])
+    code = main([*args, "--no-progress"])
     stdout, _ = capsys.readouterr()
     assert code == 0 and "collection ranking of 2 detection(s) in 2 images" in stdout
+    assert "(collection score: re-scorer)" in stdout
     assert f"ranking: {out / 'ranking.json'}" in stdout
     doc = json.loads((out / "ranking.json").read_text())
-    assert doc["appearance_check"] == 0.4 and len(doc["detections"]) == 2
+    assert doc["collection_rescore"] is True and len(doc["detections"]) == 2
+    colour = ["-p", "collection_rescore=False", "-p", "appearance_check=0.4"]
+    code = main([*args, "--no-progress", *colour])
+    stdout, _ = capsys.readouterr()
+    assert code == 0 and "score + W * colour agreement" in stdout
+    doc = json.loads((out / "ranking.json").read_text())
+    assert doc["appearance_check"] == 0.4 and doc["collection_rescore"] is False
     code = main([*args, "--no-progress", "-p", "appearance_check=-1"])
     _, err = capsys.readouterr()
     assert code == 2 and "appearance_check must be a finite number >= 0" in err
+    code = main([*args, "--no-progress", "-p", "appearance_check=0.4"])
+    _, err = capsys.readouterr()
+    assert code == 2 and "has its own colour weight" in err

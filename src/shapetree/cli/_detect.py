@@ -33,12 +33,15 @@ model, parameters, edge source and image file is skipped (--force recomputes). A
 (unreadable, empty, too large) is reported on stderr, gets an error record, and the batch
 goes on; the exit status is then 1.
 
---param appearance_check=0.4 (off by default) turns on the collection stage: with two or
-more images, all their detections are ranked together by collection score = score +
-appearance_check * (colour agreement of the inside of the outline with the most confident
-detections of the other images), written to DIR/ranking.json (or JSONL_STEM.ranking.json);
-each image's own scores do not change. It uses the other photos, never labels, and helps
-where the object looks alike from photo to photo.
+With two or more images the collection stage ranks all their detections together, by
+the re-scorer's collection score: the score plus fixed weights of the shape-context
+agreement, outline check, frame term, coverage, the detection's margin and lead within its
+image, and the colour agreement of the inside of its outline with the most confident
+detections of the other images (weights fitted on ETHZ with Pb maps; see the README). It
+is written to DIR/ranking.json (or JSONL_STEM.ranking.json); each image's own record and
+scores do not change. It uses the other photos, never labels. --param
+collection_rescore=False turns it off (or, with --param appearance_check=W, ranks by score
++ W * colour agreement alone).
 
 --edges: own (default) is the project's boundary detector on Pb's cues (brightness, colour
 and texture half-disc differences); gradient the plain colour gradient; pidinet the learned
@@ -231,14 +234,15 @@ def cmd_detect(args: argparse.Namespace) -> int:
     )
     if summary.ranking:
         n = len({d["image"] for d in summary.ranking})
+        how = "re-scorer" if "lead" in summary.ranking[0] else "score + W * colour agreement"
         say(
             f"collection ranking of {len(summary.ranking)} detection(s) in {n} images "
-            f"(score + appearance_check * colour agreement with the other images):"
+            f"(collection score: {how}):"
         )
         for d in summary.ranking[:5]:
             say(
                 f"  {d['collection_score']:9.4f}  {d['image']} #{d['rank']} "
-                f"(score {d['score']:.4f}, appearance {d['appearance']:.3f})"
+                f"(score {d['score']:.4f}, colour agreement {d['appearance']:.3f})"
             )
         if summary.ranking_path is not None:
             say(f"ranking: {summary.ranking_path}")

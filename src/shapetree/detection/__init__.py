@@ -5,9 +5,11 @@ contour tracing (:func:`trace_contours`), contour-vs-model tables of §3
 (:func:`contour_tables`), the stitching DP with gaps (:func:`detect`, or
 :func:`detect_detailed` to keep the edge map and contours), and the verification of
 each kept detection by the shape-context agreement of its placed outline
-(:func:`context_agreement`). Over a collection of photos, detections are also ranked
-by the colour agreement of each with the most confident ones of the other photos
-(:func:`collection_scores`, :func:`appearance_agreement`). Models come from outline
+(:func:`context_agreement`). Over a collection of photos, all detections are ranked
+together by the collection re-scorer (:func:`rescore_collection`, :data:`RESCORER_WEIGHTS`,
+:func:`detection_terms`), whose terms include the colour agreement of each with the most
+confident ones of the other photos (:func:`appearance_agreement`; or that agreement alone,
+:func:`collection_scores`). Models come from outline
 drawings, point files or arrays (:func:`load_model`, :func:`make_model`). The ETHZ Shape
 Classes protocol is :func:`evaluate_ethz` (DR against FPPI, :func:`dr_fppi_curve`).
 Pictures are drawn by :func:`shapetree.plotting.plot_detections`.
@@ -36,6 +38,7 @@ from shapetree.detection._model import (
     make_model,
     outline_from_image,
 )
+from shapetree.detection._rescore import RESCORER_WEIGHTS, detection_terms, rescore_collection
 from shapetree.detection._tables import contour_tables
 from shapetree.detection._verify import context_agreement, shape_contexts
 
@@ -44,6 +47,7 @@ __all__ = [
     "Detection",
     "DetectionModel",
     "DetectionRun",
+    "RESCORER_WEIGHTS",
     "appearance_agreement",
     "collection_scores",
     "colour_bins",
@@ -52,6 +56,7 @@ __all__ = [
     "detect",
     "detect_detailed",
     "detect_to_files",
+    "detection_terms",
     "dr_at_fppi",
     "dr_fppi_curve",
     "edge_map",
@@ -62,6 +67,7 @@ __all__ = [
     "load_model",
     "make_model",
     "outline_from_image",
+    "rescore_collection",
     "shape_contexts",
     "trace_contours",
 ]

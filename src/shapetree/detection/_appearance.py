@@ -27,8 +27,9 @@ On ETHZ (``benchmarks/ethz_appearance.py``) the colour agreement, paired with th
 context and both weights chosen on four classes and scored on the fifth, picked the
 weight 0.4 in score units (0.25 score standard deviations per standard deviation of the
 agreement, beside the context's 0.25) in four of the five folds of the Pb detections.
-:class:`~shapetree.detection.DetectParams` leaves it off (``appearance_check = 0``): with
-the project's own edge map it did not win.
+Alone it is off by default (``appearance_check = 0``): with the project's own edge map it
+did not win. The agreement is one of the terms of the collection re-scorer
+(:mod:`shapetree.detection._rescore`), which is on by default.
 """
 
 from __future__ import annotations

@@ -186,8 +186,8 @@ def dr_at_fppi(fppi: np.ndarray, dr: np.ndarray, at: float) -> float:
 def _params_key(params: DetectParams, k: int, edges: str = "pb") -> str:
     """Cache sub-folder name: hash of the parameters, ``k``, the edge source and the code.
 
-    The collection stage's fields (``appearance_check``, ``appearance_reference``) are
-    left out: they re-rank the cached detections and never change them."""
+    The collection stage's fields (``_detect.COLLECTION_FIELDS``) are left out: they
+    re-rank the cached detections and never change them."""
     doc: dict[str, Any] = {
         "params": params.as_dict(collection=False),  # the collection stage is not cached
         "k": k,
@@ -235,7 +235,7 @@ STAGES = {
     "stitch": "stitching DP with gaps",
     "select": "verification and selection: reconstruction of each complete match, the "
     "holistic outline check and size prior of the ranking score, non-maximum suppression",
-    "appearance": "collection stage (appearance_check): the image read and its Lab colour "
+    "appearance": "collection stage: the image read and its Lab colour "
     "bins, the colour histogram inside each kept detection's outline, divided by the number "
     "of models run on the image (done once per image); the agreements themselves are "
     "computed once for the collection and not counted",
@@ -387,8 +387,11 @@ def _run_one(
     return cls, folder, stem, doc
 
 
-def _appearance_one(task: tuple[str, str, str, dict[str, list]]) -> tuple[str, dict, float]:
-    """Worker: the interior colour histograms of every class's detections in one image."""
+def _appearance_one(
+    task: tuple[str, str, str, dict[str, list]],
+) -> tuple[str, dict, tuple[int, int], float]:
+    """Worker: the interior colour histograms of every class's detections in one image,
+    and the image's ``(H, W)``."""
     from ._appearance import colour_bins, interior_histogram
     from ._edges import load_image
 
@@ -396,40 +399,59 @@ def _appearance_one(task: tuple[str, str, str, dict[str, list]]) -> tuple[str, d
     t0 = time.perf_counter()
     bins = colour_bins(load_image(Path(root_s) / folder / f"{stem}.jpg"))
     hists = {c: [interior_histogram(bins, pts) for pts in v] for c, v in outlines.items()}
-    return f"{folder}/{stem}", hists, time.perf_counter() - t0
+    shape = (int(bins.shape[0]), int(bins.shape[1]))
+    return f"{folder}/{stem}", hists, shape, time.perf_counter() - t0
 
 
 def _collection_rank(
     results: dict[tuple[str, str, str], dict],
     hists: dict[str, dict[str, list]],
-    cls_list: Sequence[str],
+    shapes: dict[str, tuple[int, int]],
+    models: dict[str, np.ndarray],
     params: DetectParams,
 ) -> None:
-    """Add ``appearance`` and ``collection_score`` to every detection (in place) and
-    re-order each image's detections by the collection score."""
-    from ._appearance import collection_scores
+    """Add ``collection_score`` and the collection stage's terms to every detection (in
+    place) and re-order each image's detections by the collection score."""
+    from ._rescore import collection_table
 
-    for c in cls_list:
+    for c, model_points in models.items():
         items = [(key, doc) for key, doc in results.items() if key[0] == c]
-        keys, scores, hs = [], [], []
+        keys, dets, hs = [], [], []
         for (_c, f, s), doc in items:
             for d, h in zip(doc["detections"], hists[f"{f}/{s}"][c], strict=True):
                 keys.append(f"{f}/{s}")
-                scores.append(d["score"])
+                dets.append(d)
                 hs.append(h)
         if not keys:
             continue
-        cs, ag = collection_scores(
-            keys, scores, np.array(hs), params.appearance_check, params.appearance_reference
-        )
+        cs, table = collection_table(keys, dets, model_points, shapes, np.array(hs), params)
         i = 0
         for key, doc in items:
-            dets = [dict(d) for d in doc["detections"]]
-            for d in dets:
-                d["appearance"], d["collection_score"] = float(ag[i]), float(cs[i])
+            ranked = [dict(d) for d in doc["detections"]]
+            for d in ranked:
+                d.update({t: float(v[i]) for t, v in table.items()})
+                d["collection_score"] = float(cs[i])
                 i += 1
-            dets.sort(key=lambda d: -d["collection_score"])
-            results[key] = dict(doc, detections=dets)
+            ranked.sort(key=lambda d: -d["collection_score"])
+            results[key] = dict(doc, detections=ranked)
+
+
+def _ranked_by_note(params: DetectParams, collection: bool) -> str:
+    if not collection:
+        return "score: each image's own ranking score (no collection stage, or one image)"
+    how = (
+        "the re-scorer (shapetree.detection.rescore_collection: the score with its context, "
+        "outline, frame, coverage, within-image margin and lead and colour agreement terms "
+        "reweighted by fixed weights fitted on the ETHZ Pb detections; in sample for the "
+        "Pb run)"
+        if params.collection_rescore
+        else "score + appearance_check * appearance"
+    )
+    return (
+        f"collection_score = {how}: the collection stage (transductive: each detection is "
+        "compared with the most confident detections of the same model in the other "
+        "images and with the other detections of its own image, no labels used)"
+    )
 
 
 def evaluate_ethz(
@@ -489,12 +511,12 @@ def evaluate_ethz(
 
     Notes
     -----
-    With ``params.appearance_check > 0`` (off by default) and more than one image, the
-    detections are ranked across images by their collection score (see
-    :func:`shapetree.detection.collection_scores`): after the detections, each image is
-    read once more for the colour histograms inside its detections' outlines. The
-    per-image cache holds the detections with their own scores only, so another
-    ``appearance_check`` re-ranks them without detecting again.
+    With the collection stage on (``params.collection_stage``: the re-scorer by default,
+    :func:`shapetree.detection.rescore_collection`) and more than one image, the
+    detections are ranked across images by their collection score: after the
+    detections, each image is read once more for the colour histograms inside its
+    detections' outlines. The per-image cache holds the detections with their own
+    scores only, so other collection settings re-rank them without detecting again.
 
     Returns
     -------
@@ -560,8 +582,9 @@ def evaluate_ethz(
     results: dict[tuple[str, str, str], dict] = {}
     edge_secs: dict[str, float] = {}
     # the collection stage: it needs another image to compare with
-    collection = params.appearance_check > 0 and len(imgs) > 1
+    collection = params.collection_stage and len(imgs) > 1
     hists: dict[str, dict[str, list]] = {}
+    shapes: dict[str, tuple[int, int]] = {}
     app_secs: dict[str, float] = {}
     from tqdm import tqdm
 
@@ -596,8 +619,9 @@ def evaluate_ethz(
             with tqdm(
                 total=len(a_tasks), disable=not progress, desc="ETHZ appearance", unit="img"
             ) as abar:
-                for key, h, sec in imap(_appearance_one, a_tasks):
+                for key, h, shape, sec in imap(_appearance_one, a_tasks):
                     hists[key] = h
+                    shapes[key] = shape
                     app_secs[key] = sec
                     abar.update()
 
@@ -624,7 +648,13 @@ def evaluate_ethz(
             doc["timings"] = dict(doc["timings"], appearance=a)
         results[(_c, f, s)] = doc
     if collection:
-        _collection_rank(results, hists, cls_list, params)
+        from ._model import load_model
+
+        models = {
+            c: load_model(root / "models" / f"{ETHZ_CLASSES[c][1]}.tif", m=params.m).points
+            for c in cls_list
+        }
+        _collection_rank(results, hists, shapes, models, params)
     rank_by = "collection_score" if collection else "score"
 
     out: dict[str, Any] = {"overlap_20": {}, "overlap_50": {}}
@@ -685,13 +715,7 @@ def evaluate_ethz(
         out["edge_weights"] = weights_info
     out["edges"] = edges
     out["ranked_by"] = rank_by
-    out["ranked_by_note"] = (
-        "collection_score = score + appearance_check * appearance: the collection stage "
-        "(transductive: each detection is compared with the most confident detections of "
-        "the same model in the other images, no labels used)"
-        if collection
-        else "score: each image's own ranking score (appearance_check = 0, or one image)"
-    )
+    out["ranked_by_note"] = _ranked_by_note(params, collection)
     out["n_images"] = len(imgs)
     out["n_gt"] = n_gt_total
     out["k"] = k

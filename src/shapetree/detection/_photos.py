@@ -7,8 +7,8 @@ stream.  Runs are resumable: a record carries a key (hash of the model file, the
 parameters, ``k``, the edge source, the image file's path / size / modification time and
 the code fingerprint); an image whose record exists with the same key is skipped.  Every
 file goes through :mod:`shapetree._atomic`.  With two or more images, the collection stage
-(:func:`collection_ranking`) ranks all their detections by appearance agreement as well
-(``ranking.json``).  A bad image (unreadable, empty, too large, too
+(:func:`collection_ranking`) ranks all their detections together by the re-scorer's
+collection score (``ranking.json``).  A bad image (unreadable, empty, too large, too
 small) gives an error record and a message; the batch goes on and counts it.
 """
 
@@ -31,7 +31,7 @@ import numpy as np
 from shapetree._atomic import atomic_write_bytes
 from shapetree._errors import ImageError, ShapeTreeError
 
-from ._detect import DetectParams, detect_detailed
+from ._detect import COLLECTION_FIELDS, DetectParams, detect_detailed
 from ._edges import EDGE_METHODS, load_image
 from ._model import DetectionModel, load_model
 
@@ -168,11 +168,13 @@ class BatchSummary:
     records : list of dict
         The records of this call, in image order (skipped ones as read back).
     ranking : list of dict
-        The collection stage (``params.appearance_check > 0`` and detections in two or
-        more images): every detection of the batch, best first by its collection score
-        (:func:`~shapetree.detection.collection_scores`), each with ``image``, ``rank``
-        (its index in the image's record), ``score``, ``appearance``,
-        ``collection_score`` and ``bbox``; empty otherwise.
+        The collection stage (``params.collection_stage``, on by default, and detections
+        in two or more images): every detection of the batch, best first by its
+        collection score (:func:`~shapetree.detection.rescore_collection`, or
+        :func:`~shapetree.detection.collection_scores` with ``collection_rescore=False``),
+        each with ``image``, ``rank`` (its index in the image's record), ``score``,
+        ``collection_score``, ``bbox``, ``appearance`` and, with the re-scorer, its
+        other terms; empty otherwise.
     ranking_path : Path or None
         Where the ranking was written (``ranking.json`` in the output folder, else
         ``<jsonl stem>.ranking.json`` beside the JSON-lines file), or None.
@@ -195,38 +197,58 @@ def collection_ranking(
 
     Each image with detections is read again for the colour histograms inside their
     outlines; an image that cannot be read now is left out of the ranking. Returns an
-    empty list where ``params.appearance_check`` is 0 or fewer than two images have a
-    detection.
+    empty list where the stage is off (``params.collection_stage``) or fewer than two
+    images have a detection.
     """
     from tqdm import tqdm
 
-    from ._appearance import collection_scores, colour_bins, interior_histogram
+    from ._appearance import colour_bins, interior_histogram
+    from ._rescore import collection_table
 
     todo = [r for r in records if r.get("status") == "ok" and r.get("detections")]
-    if params.appearance_check <= 0 or len({r["image"] for r in todo}) < 2:
+    if not params.collection_stage or len({r["image"] for r in todo}) < 2:
         return []
-    keys, scores, hists, rows = [], [], [], []
-    for r in tqdm(todo, desc="appearance", unit="img", disable=not progress, file=sys.stderr):
+    keys, dets, hists, rows, shapes = [], [], [], [], {}
+    for r in tqdm(todo, desc="collection", unit="img", disable=not progress, file=sys.stderr):
         try:
             bins = colour_bins(load_image(r["image"]))
         except (ShapeTreeError, OSError, MemoryError):
             continue
+        shapes[r["image"]] = bins.shape[:2]
         for i, d in enumerate(r["detections"]):
             keys.append(r["image"])
-            scores.append(float(d["score"]))
+            dets.append(d)
             hists.append(interior_histogram(bins, d["image_points"]))
             rows.append({"image": r["image"], "rank": i, "bbox": d["bbox"]})
     if len(set(keys)) < 2:
         return []
-    cs, ag = collection_scores(
-        keys, scores, np.array(hists), params.appearance_check, params.appearance_reference
-    )
+    model_points = next(r["model_points"] for r in todo if r["image"] in shapes)
+    cs, table = collection_table(keys, dets, model_points, shapes, np.array(hists), params)
     out = [
-        {**row, "score": s, "appearance": round(float(a), 6), "collection_score": float(c)}
-        for row, s, a, c in zip(rows, scores, ag, cs, strict=True)
+        {
+            **row,
+            "score": float(d["score"]),
+            "collection_score": float(cs[i]),
+            **{t: round(float(v[i]), 6) for t, v in table.items()},
+        }
+        for i, (row, d) in enumerate(zip(rows, dets, strict=True))
     ]
     out.sort(key=lambda d: -d["collection_score"])
     return out
+
+
+def _ranking_note(p: DetectParams) -> str:
+    how = (
+        "the re-scorer (shapetree.detection.rescore_collection): base score plus fixed "
+        "weights of context, outline_dif, frame, coverage, margin, lead and appearance"
+        if p.collection_rescore
+        else "score + appearance_check * appearance"
+    )
+    return (
+        f"every detection of the batch, best first by collection_score = {how}; appearance "
+        "is the colour agreement with the most confident detections of the other images; "
+        "score is the image's own"
+    )
 
 
 def _detection_record(det: Any) -> dict[str, Any]:
@@ -283,7 +305,7 @@ def detect_images(
 
     Notes
     -----
-    After the images, the collection stage (``params.appearance_check > 0``; off by
+    After the images, the collection stage (``params.collection_stage``; on by
     default) with detections in two or more images ranks every detection of the batch
     by its collection score (see :class:`BatchSummary`, :func:`collection_ranking`) and
     writes that ranking atomically: ``ranking.json`` in ``out_dir``, else
@@ -456,11 +478,8 @@ def detect_images(
             doc = {
                 "model": model_desc.get("file", model_desc.get("name")),
                 "n_images": len({d["image"] for d in summary.ranking}),
-                "appearance_check": p.appearance_check,
-                "appearance_reference": p.appearance_reference,
-                "note": "every detection of the batch, best first by collection_score = "
-                "score + appearance_check * appearance (colour agreement with the most "
-                "confident detections of the other images); score is the image's own",
+                **{f: getattr(p, f) for f in COLLECTION_FIELDS},
+                "note": _ranking_note(p),
                 "detections": summary.ranking,
             }
             blob = (json.dumps(doc, indent=1) + "\n").encode()
