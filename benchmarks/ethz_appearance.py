@@ -45,9 +45,7 @@ Writes ``benchmarks/results/ethz_appearance_<edges>.json``.
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
 import pickle
 import sys
 import time
@@ -56,11 +54,10 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
+from _common import RESULTS, ethz_parser, machine, write_json  # noqa: E402
 
 from shapetree.detection import load_image  # noqa: E402
 from shapetree.detection._appearance import colour_bins, histogram, interior_mask  # noqa: E402
@@ -154,17 +151,10 @@ def rows_with_appearance(
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "--data", default=os.environ.get("SHAPETREE_DATA", str(REPO.parent / "shared" / "datasets"))
-    )
-    ap.add_argument("--edges", choices=("pb", "own"), default="pb")
-    ap.add_argument("--detections", required=True, help="the cached detections (eval_ethz.py)")
+    ap = ethz_parser(__doc__)
     ap.add_argument("--rows", required=True, help="the terms pickle ethz_verify.py --rows wrote")
     ap.add_argument("--context-check", type=float, default=0.15)
     ap.add_argument("--without-context", action="store_true")
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--json", default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
     root = ethz_root(args.data)

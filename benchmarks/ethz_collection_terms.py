@@ -32,9 +32,7 @@ Writes ``benchmarks/results/ethz_collection_terms_<edges>.json`` (or ``--json``)
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
 import sys
 import time
 from multiprocessing import Pool
@@ -42,11 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
+from _common import RESULTS, ethz_parser, machine, write_json  # noqa: E402
 
 from shapetree.detection import (  # noqa: E402
     DetectParams,
@@ -164,14 +161,7 @@ def _aucs(sc: V._Scorer, term: str, label: np.ndarray) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "--data", default=os.environ.get("SHAPETREE_DATA", str(REPO.parent / "shared" / "datasets"))
-    )
-    ap.add_argument("--edges", choices=("pb", "own"), default="pb")
-    ap.add_argument("--detections", required=True, help="the cached detections (eval_ethz.py)")
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--json", default=None)
+    ap = ethz_parser(__doc__)
     args = ap.parse_args()
     t0 = time.perf_counter()
     root = ethz_root(args.data)

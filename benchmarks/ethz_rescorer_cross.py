@@ -18,20 +18,17 @@ Writes ``benchmarks/results/ethz_rescorer_cross.json`` (or ``--json``).
 
 from __future__ import annotations
 
-import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_appearance as A  # noqa: E402
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
+from _common import RESULTS, ethz_parser, machine, write_json  # noqa: E402
 
 from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
 
@@ -45,15 +42,10 @@ def _source(root: Path, imgs: list, dets: str, rows_file: str, workers: int, con
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "--data", default=os.environ.get("SHAPETREE_DATA", str(REPO.parent / "shared" / "datasets"))
-    )
+    ap = ethz_parser(__doc__, edges=False)
     ap.add_argument("--train", nargs=3, metavar=("EDGES", "DETECTIONS", "ROWS"), required=True)
     ap.add_argument("--test", nargs=3, metavar=("EDGES", "DETECTIONS", "ROWS"), required=True)
     ap.add_argument("--context-check", type=float, default=0.15)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--json", default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
     root = ethz_root(args.data)
