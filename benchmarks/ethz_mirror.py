@@ -13,6 +13,10 @@ then scores three rankings with the evaluation's scorer:
 * ``both``: per image, the two lists merged by ranking score, non-maximum suppression at
   ``nms_iou`` and the best ``k`` kept: what a ``mirror`` option would give.
 
+and the first and last again ranked by the shipped collection re-scorer
+(``as_drawn_rescored``, ``both_rescored``; each detection's terms taken with the model it
+was found with, the colour agreement over the merged lists).
+
 Run::
 
     SHAPETREE_DATA=/work/shared/datasets python3 benchmarks/ethz_mirror.py
@@ -75,7 +79,12 @@ def _run(task: tuple[str, str, str, str, str, int]) -> int:
     )
     doc = {
         "detections": [
-            {"score": d.score, "bbox": list(d.bbox), "image_points": d.image_points.tolist()}
+            {
+                "score": d.score,
+                "bbox": list(d.bbox),
+                "coverage": d.coverage,
+                "image_points": d.image_points.tolist(),
+            }
             for d in run.detections
         ]
     }
@@ -99,6 +108,63 @@ def _merged(lists: list[list[dict]], k: int, nms_iou: float) -> list[dict]:
         if len(kept) >= k:
             break
     return kept
+
+
+def _rescored(root: Path, imgs: list, drawn: Path, mirrored: Path, k: int) -> dict:
+    """DR at 0.4 FPPI (20%, PASCAL) per class of ``as_drawn`` and ``both`` ranked by the
+    shipped collection re-scorer, each detection's terms taken with the model it was
+    found with (the mirrored one for a mirrored detection)."""
+    from tqdm import tqdm
+
+    from shapetree.detection import (
+        appearance_agreement,
+        colour_bins,
+        detection_terms,
+        interior_histogram,
+        load_image,
+        rescore_collection,
+    )
+
+    p = DetectParams()
+    models = {
+        c: (
+            load_model(root / "models" / f"{ETHZ_CLASSES[c][1]}.tif", m=p.m).points,
+            mirrored_model(root, c, p.m).points,
+        )
+        for c in ETHZ_CLASSES
+    }
+    modes = ("as_drawn", "both")
+    per: dict = {(c, m): ([], [], [], []) for c in ETHZ_CLASSES for m in modes}
+    for fo, st in tqdm(imgs, desc="re-scorer terms", unit="img"):
+        key = f"{fo}/{st}"
+        bins = colour_bins(load_image(root / fo / f"{st}.jpg"))
+        for c in ETHZ_CLASSES:
+            a = [dict(d, mirrored=False) for d in _load(drawn, c, fo, st)]
+            b = [dict(d, mirrored=True) for d in _load(mirrored, c, fo, st)]
+            for mode, lists in (("as_drawn", [a]), ("both", [a, b])):
+                keys, dets, hists, terms = per[(c, mode)]
+                for d in _merged(lists, k, p.nms_iou):
+                    keys.append(key)
+                    dets.append(d)
+                    hists.append(interior_histogram(bins, d["image_points"]))
+                    pts, box = models[c][int(d["mirrored"])], d["bbox"]
+                    terms.append(
+                        detection_terms(pts, d["image_points"], box, d["coverage"], bins.shape)
+                    )
+    res: dict = {}
+    for (c, mode), (keys, dets, hists, terms) in per.items():
+        scores = np.array([d["score"] for d in dets])
+        table = {t: np.array([r[t] for r in terms]) for t in terms[0]}
+        table["appearance"] = appearance_agreement(keys, scores, np.array(hists), 10)
+        cs, _ = rescore_collection(keys, scores, table, p.context_check)
+        gts = {f"{fo}/{st}": _gt_boxes(root, fo, st, c) for fo, st in imgs}
+        ranked = [(kk, float(v), d["bbox"]) for kk, v, d in zip(keys, cs, dets, strict=True)]
+        pair = []
+        for thr in (0.2, 0.5):
+            fppi, dr, _ = dr_fppi_curve(ranked, gts, len(imgs), thr)
+            pair.append(round(dr_at_fppi(fppi, dr, 0.4), 4))
+        res.setdefault(f"{mode}_rescored", {})[c] = pair
+    return res
 
 
 def main() -> None:
@@ -134,6 +200,7 @@ def main() -> None:
                 fppi, dr, _ = dr_fppi_curve(dets, gts, len(imgs), thr)
                 pair.append(round(dr_at_fppi(fppi, dr, 0.4), 4))
             res.setdefault(mode, {})[cls] = pair
+    res.update(_rescored(root, imgs, drawn, Path(args.mirrored), k))
     out = {
         "command": "python3 benchmarks/ethz_mirror.py " + " ".join(sys.argv[1:]),
         "protocol": __doc__.split("\n\n")[1].replace("\n", " "),
