@@ -29,7 +29,7 @@ appearance     colour agreement with the most confident detections of the other
 The weights are those of a logistic regression (detection overlaps a ground-truth box
 by IoU >= 0.2, or not) on the standardised terms, L2 penalty 10000 chosen by
 leave-one-class-out, fitted on every detection of the ETHZ Shape Classes run with the
-Pb edge maps (5 hand-drawn models x 255 images x 5 kept detections):
+Pb edge maps (5 hand-drawn models x 255 images, up to 5 kept detections each: 6364):
 ``python3 benchmarks/ethz_rescorer_cross.py --train pb ... --test own ...`` writes them,
 ``fit_all_training_classes`` in ``benchmarks/results/ethz_rescorer_cross.json``, divided
 here by their standard deviations and scaled so that ``base`` weighs 1 (a ranking is
