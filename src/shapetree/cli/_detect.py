@@ -234,7 +234,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     )
     if summary.ranking:
         n = len({d["image"] for d in summary.ranking})
-        how = "re-scorer" if "lead" in summary.ranking[0] else "score + W * colour agreement"
+        how = "re-scorer" if p.collection_rescore else "score + W * colour agreement"
         say(
             f"collection ranking of {len(summary.ranking)} detection(s) in {n} images "
             f"(collection score: {how}):"

@@ -437,20 +437,16 @@ def _collection_rank(
 
 
 def _ranked_by_note(params: DetectParams, collection: bool) -> str:
+    from ._rescore import collection_formula
+
     if not collection:
         return "score: each image's own ranking score (no collection stage, or one image)"
-    how = (
-        "the re-scorer (shapetree.detection.rescore_collection: the score with its context, "
-        "outline, frame, coverage, within-image margin and lead and colour agreement terms "
-        "reweighted by fixed weights fitted on the ETHZ Pb detections; in sample for the "
-        "Pb run)"
-        if params.collection_rescore
-        else "score + appearance_check * appearance"
-    )
+    fitted = " (in sample for the Pb run)" if params.collection_rescore else ""
     return (
-        f"collection_score = {how}: the collection stage (transductive: each detection is "
-        "compared with the most confident detections of the same model in the other "
-        "images and with the other detections of its own image, no labels used)"
+        f"collection_score = {collection_formula(params)}{fitted}: the collection stage "
+        "(transductive: each detection is compared with the most confident detections of "
+        "the same model in the other images and with the other detections of its own "
+        "image, no labels used)"
     )
 
 

@@ -238,16 +238,12 @@ def collection_ranking(
 
 
 def _ranking_note(p: DetectParams) -> str:
-    how = (
-        "the re-scorer (shapetree.detection.rescore_collection): base score plus fixed "
-        "weights of context, outline_dif, frame, coverage, margin, lead and appearance"
-        if p.collection_rescore
-        else "score + appearance_check * appearance"
-    )
+    from ._rescore import collection_formula
+
     return (
-        f"every detection of the batch, best first by collection_score = {how}; appearance "
-        "is the colour agreement with the most confident detections of the other images; "
-        "score is the image's own"
+        f"every detection of the batch, best first by collection_score = "
+        f"{collection_formula(p)}; appearance is the colour agreement with the most "
+        "confident detections of the other images; score is the image's own"
     )
 
 

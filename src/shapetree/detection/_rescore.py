@@ -52,7 +52,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Mapping, Sequence
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -61,6 +61,9 @@ from shapetree._errors import ShapeTreeError
 from shapetree.geometry import outline_dif
 
 from ._verify import context_agreement
+
+if TYPE_CHECKING:
+    from ._detect import DetectParams
 
 __all__ = ["RESCORER_WEIGHTS", "detection_terms", "rescore_collection"]
 
@@ -201,7 +204,7 @@ def collection_table(
     model_points: ArrayLike,
     image_shapes: Mapping[Hashable, Sequence[int]],
     histograms: ArrayLike,
-    params: Any,
+    params: DetectParams,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The collection stage of ``params`` over the detections of one model.
 
@@ -243,3 +246,14 @@ def collection_table(
     terms = {t: np.array([r[t] for r in rows]) for t in DETECTION_TERMS}
     terms["appearance"] = agreement
     return rescore_collection(keys, scores, terms, params.context_check)
+
+
+def collection_formula(params: DetectParams) -> str:
+    """What the collection score of ``params`` is, in one line (for notes and the CLI)."""
+    if params.collection_rescore:
+        return (
+            "the re-scorer (shapetree.detection.rescore_collection): base score plus fixed "
+            "weights of context, outline_dif, frame, coverage, margin, lead and appearance, "
+            "fitted on the ETHZ Pb detections"
+        )
+    return "score + appearance_check * appearance"
