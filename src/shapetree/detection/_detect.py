@@ -23,6 +23,7 @@ from ._edges import EDGE_METHODS, WEIGHTED_METHODS, edge_map, load_edges, load_i
 from ._model import DetectionModel, load_model
 from ._stitch import complete_matches, run_stitch
 from ._tables import contour_tables
+from ._template import TEMPLATE_TERMS, template_fields, template_model, template_terms
 from ._verify import context_agreement
 
 #: the :class:`DetectParams` fields of the collection stage (several images, one model):
@@ -139,13 +140,13 @@ class DetectParams:
         with two or more images): rank all their detections together by the
         *collection score* of the re-scorer (:func:`~shapetree.detection.rescore_collection`),
         a fixed linear form in the score, the context agreement, the outline check, the
-        frame term, the coverage, the detection's margin and lead within its image and
-        its colour agreement with the most confident detections of the other images
-        (True). Its weights were fitted on the ETHZ detections with Pb maps; held out
-        (four classes fitted, the fifth scored) it lifts the mean DR at 0.4 FPPI from
-        0.768 to 0.823 with Pb maps, and from 0.752 to 0.798 with the project's own
-        edge map when fitted on the Pb run (README, detection section). A detection's
-        own ``score`` never depends on other images. False: the collection score is
+        frame term, the coverage, the detection's margin and lead within its image, its
+        colour agreement with the most confident detections of the other images and the
+        upright template check of its box (:attr:`Detection.template`) (True). Its
+        weights were fitted on the ETHZ detections with Pb maps; held out (four classes
+        fitted, the fifth scored) it lifts the mean DR at 0.4 FPPI from 0.768 to 0.836
+        with Pb maps (README, detection section). A detection's own ``score`` never
+        depends on other images. False: the collection score is
         ``score + appearance_check * g`` (below), the score alone when that is 0.
     appearance_check : float
         With ``collection_rescore=False`` only (an error otherwise: the re-scorer has
@@ -329,6 +330,13 @@ class Detection:
         Matched contours in model order: ``contour`` (index into
         ``DetectionRun.contours``), ``reversed``, ``model_start``,
         ``model_len`` (segments), ``cost``.
+    template, template_support, template_gain, box_density : float
+        The upright template check of the box (:mod:`shapetree.detection._template`):
+        how well the model as drawn, fitted to the box's edges by an oriented chamfer
+        search, matches them (in ``[0, 1]``), the share of its points an edge supports,
+        how much better it matches than the model turned on its side, and the share of
+        edge pixels in the box. Terms of the collection re-scorer, not of the score; 0
+        where there is no edge map (``contours=`` without an image).
     """
 
     cost: float
@@ -340,6 +348,10 @@ class Detection:
     gaps: list[tuple[int, int, float]]
     coverage: float
     pieces: list[dict[str, Any]] = field(default_factory=list)
+    template: float = 0.0
+    template_support: float = 0.0
+    template_gain: float = 0.0
+    box_density: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
         """JSON-friendly dict (lists of floats)."""
@@ -353,6 +365,7 @@ class Detection:
             "matched": [bool(v) for v in self.matched],
             "gaps": [[int(a), int(b), float(f)] for a, b, f in self.gaps],
             "pieces": [dict(p) for p in self.pieces],
+            **{t: float(getattr(self, t)) for t in TEMPLATE_TERMS},
         }
 
 
@@ -748,6 +761,10 @@ def detect_detailed(
         if len(kept) >= k:
             break
     kept = [_ranking_score(d, e.shape if e.size else None, p) for d in kept]
+    if kept and e.size:
+        fields = template_fields(e, p.threshold)
+        tm = template_model(kept[0].model_points)
+        kept = [dataclasses.replace(d, **template_terms(fields, tm, d.bbox)) for d in kept]
     kept.sort(key=lambda d: -d.score)
     timings["select"] = time.perf_counter() - t0
     run.detections = kept

@@ -234,7 +234,8 @@ STAGES = {
     "tables": "contour-vs-model tables (section 3 kernel)",
     "stitch": "stitching DP with gaps",
     "select": "verification and selection: reconstruction of each complete match, the "
-    "holistic outline check and size prior of the ranking score, non-maximum suppression",
+    "holistic outline check and size prior of the ranking score, non-maximum suppression, "
+    "and the upright template check of each kept detection's box",
     "appearance": "collection stage: the image read and its Lab colour "
     "bins, the colour histogram inside each kept detection's outline, divided by the number "
     "of models run on the image (done once per image); the agreements themselves are "
