@@ -116,14 +116,28 @@ def _safe_context(a: np.ndarray, b: np.ndarray) -> float:
         return 0.0
 
 
-def rows_for(root: Path, cache: Path, imgs: list, workers: int) -> list[dict]:
-    """Every kept detection of every class with the shipped terms and the new ones."""
+def rows_for(
+    root: Path,
+    cache: Path,
+    imgs: list,
+    workers: int,
+    image_fn=None,
+    init=None,
+    init_args: tuple = (),
+    extra: tuple[str, ...] = (),
+) -> list[dict]:
+    """Every kept detection of every class with the shipped terms and the new ones.
+
+    ``image_fn`` (default :func:`_image`) reads one image's detections in a worker that
+    ``init(root, cache, *init_args)`` (default :func:`_init`) set up; the detection keys
+    named in ``extra`` are copied into the rows (another script's terms)."""
     from tqdm import tqdm
 
     per_image: dict = {}
     shapes: dict = {}
-    with Pool(workers, initializer=_init, initargs=(str(root), str(cache))) as pool:
-        for key, shape, dets in tqdm(pool.imap(_image, imgs), total=len(imgs), unit="img"):
+    image_fn, init = image_fn or _image, init or _init
+    with Pool(workers, initializer=init, initargs=(str(root), str(cache), *init_args)) as pool:
+        for key, shape, dets in tqdm(pool.imap(image_fn, imgs), total=len(imgs), unit="img"):
             per_image[key], shapes[key] = dets, shape
     params = DetectParams()
     rows: list[dict] = []
@@ -147,6 +161,7 @@ def rows_for(root: Path, cache: Path, imgs: list, workers: int) -> list[dict]:
             row = {"cls": cls, "key": k, "bbox": d["bbox"], "iou": d["iou"]}
             row.update({t: float(table[t][i]) for t in SHIPPED})
             row.update({t: float(v[i]) for t, v in new.items()})
+            row.update({t: float(d[t]) for t in extra})
             row["collection_score"] = float(cs[i])
             rows.append(row)
     return rows

@@ -21,7 +21,17 @@ from shapetree.detection._rescore import collection_table
 from shapetree.geometry import outline_dif
 
 RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
-TERMS = ("context", "outline_dif", "frame", "coverage", "appearance")
+TERMS = (
+    "context",
+    "outline_dif",
+    "frame",
+    "coverage",
+    "appearance",
+    "template",
+    "template_support",
+    "template_gain",
+    "box_density",
+)
 
 
 def _terms(n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -31,6 +41,10 @@ def _terms(n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         "frame": rng.uniform(-2, 0, n),
         "coverage": rng.uniform(0.3, 1, n),
         "appearance": rng.uniform(0, 1, n),
+        "template": rng.uniform(0, 1, n),
+        "template_support": rng.uniform(0, 1, n),
+        "template_gain": rng.uniform(-0.3, 0.3, n),
+        "box_density": rng.uniform(0, 0.3, n),
     }
 
 
@@ -74,16 +88,15 @@ def test_weights_reward_agreement_and_penalise_distortion() -> None:
 
 
 def test_weights_are_the_committed_fit() -> None:
-    """The constants are the committed fit of ``benchmarks/ethz_rescorer_cross.py``
-    (``fit_all_training_classes``) per unit of each term, scaled so the score weighs 1,
-    to the 4 decimals they are written with."""
-    doc = json.loads((RESULTS / "ethz_rescorer_cross.json").read_text())
-    fit = doc["fit_all_training_classes"]
+    """The constants are the committed fit of ``benchmarks/ethz_template.py``
+    (``set_chosen_in_each_fold.fit_all``) per unit of each term, scaled so ``base`` weighs
+    1, to the 4 decimals they are written with."""
+    doc = json.loads((RESULTS / "ethz_template_pb.json").read_text())
+    fit = doc["set_chosen_in_each_fold"]["fit_all"]
     per_unit = np.array(fit["weights"]) / np.array(fit["std"])
-    names = {"od": "outline_dif", "appearance_colour": "appearance"}
-    assert doc["terms"][0] == "score"
-    got = {names.get(t, t): float(w / per_unit[0]) for t, w in zip(doc["terms"], per_unit)}
-    assert got.pop("score") == 1.0
+    assert fit["terms"][0] == "base"
+    got = {t: float(w / per_unit[0]) for t, w in zip(fit["terms"], per_unit, strict=True)}
+    assert got.pop("base") == 1.0
     assert set(got) == set(RESCORER_WEIGHTS)
     for t, w in got.items():
         assert RESCORER_WEIGHTS[t] == pytest.approx(w, abs=6e-5), t
@@ -119,6 +132,10 @@ def test_collection_table_modes() -> None:
                 "bbox": [*pts.min(0), *pts.max(0)],
                 "coverage": 0.9,
                 "image_points": pts.tolist(),
+                "template": 0.5 + 0.1 * i,
+                "template_support": 0.6,
+                "template_gain": 0.1 * i,
+                "box_density": 0.05,
             }
         )
         keys.append(f"im{i % 2}")
@@ -135,6 +152,9 @@ def test_collection_table_modes() -> None:
     cs2, table2 = collection_table(keys, dets, model, shapes, hists, p)
     assert set(table2) == {"appearance"}
     assert cs2 == pytest.approx(np.array([-0.4, -0.6, -0.5]) + 0.4)
+    old = [{k: v for k, v in d.items() if k != "template_gain"} for d in dets]
+    with pytest.raises(ShapeTreeError, match="no 'template_gain'"):
+        collection_table(keys, old, model, shapes, hists, DetectParams())
 
 
 def test_errors_name_the_problem() -> None:

@@ -3,7 +3,7 @@
 A detection's ranking score (:class:`~shapetree.detection.DetectParams`) is the stitched
 cost with three checks added, and it judges the detection by its own image alone. Where
 one model is searched over several photos, this module ranks all their detections
-together by a fixed linear form in eight terms of each detection, the **collection
+together by a fixed linear form in twelve terms of each detection, the **collection
 score**, in the units of the score:
 
 ``collection_score = base + sum_t RESCORER_WEIGHTS[t] * t``
@@ -24,24 +24,28 @@ lead           for an image's best detection, its ``base`` lead over the second;
                for the others and for an image's only detection
 appearance     colour agreement with the most confident detections of the other
                images (:func:`~shapetree.detection.appearance_agreement`)
+template       the upright template check of the box (:mod:`._template`): how well the
+               model as drawn, fitted to the box's edges by an oriented chamfer search,
+               matches them, in ``[0, 1]``
+template_      at that fit, the share of model points an edge supports
+support
+template_gain  ``template`` less the same fit with the model turned on its side
+box_density    share of edge pixels inside the box
 =============  =====================================================================
 
 The weights are those of a logistic regression (detection overlaps a ground-truth box
-by IoU >= 0.2, or not) on the standardised terms, L2 penalty 10000 chosen by
-leave-one-class-out, fitted on every detection of the ETHZ Shape Classes run with the
-Pb edge maps (5 hand-drawn models x 255 images, up to 5 kept detections each: 6364):
-``python3 benchmarks/ethz_rescorer_cross.py --train pb ... --test own ...`` writes them,
-``fit_all_training_classes`` in ``benchmarks/results/ethz_rescorer_cross.json``, divided
-here by their standard deviations and scaled so that ``base`` weighs 1 (a ranking is
-unchanged by a common scale and by the intercept). Held out, the same fit scores
-(mean DR at 0.4 FPPI, 20% rule / PASCAL):
-
-- fitted on four classes and scored on the fifth, Pb detections: 0.8229 / 0.7507
-  (``benchmarks/ethz_appearance.py``, ``logistic_product_terms``), against 0.7675 /
-  0.7219 for the score alone with its context weight chosen the same way;
-- fitted on four classes of the Pb run and scored on the fifth class of the run with the
-  project's own edge map (held out as to class and edge source): 0.7984 / 0.7150,
-  against 0.7520 / 0.6918.
+by IoU >= 0.2, or not) on the standardised terms, fitted on every detection of the ETHZ
+Shape Classes run with the Pb edge maps (5 hand-drawn models x 255 images, up to 5 kept
+detections each: 6364). Which template terms join the first eight, and the L2 penalty
+(1000), were chosen by leave-one-class-out over the five classes among eight candidate
+term sets. ``python3 benchmarks/ethz_template.py --edges pb --detections ...`` writes
+them (``set_chosen_in_each_fold`` -> ``fit_all`` in
+``benchmarks/results/ethz_template_pb.json``), divided here by their standard deviations
+and scaled so that ``base`` weighs 1 (a ranking is unchanged by a common scale and by the
+intercept). Held out (mean DR at 0.4 FPPI, 20% rule / PASCAL), with the term set and the
+penalty chosen inside each fold on four classes and the fifth scored: 0.8359 / 0.7580 on
+the Pb detections, against 0.8229 / 0.7507 for the eight terms without the template check
+and 0.7675 / 0.7219 for the score alone with its context weight chosen the same way.
 
 It is transductive through ``appearance`` (the other photos, never their labels) and
 through ``margin`` / ``lead`` (the other detections of the same photo). A detection's own
@@ -60,6 +64,7 @@ from numpy.typing import ArrayLike
 from shapetree._errors import ShapeTreeError
 from shapetree.geometry import outline_dif
 
+from ._template import TEMPLATE_TERMS
 from ._verify import context_agreement
 
 if TYPE_CHECKING:
@@ -71,18 +76,25 @@ __all__ = ["RESCORER_WEIGHTS", "detection_terms", "rescore_collection"]
 #: the module docstring for where they come from).
 RESCORER_WEIGHTS: Mapping[str, float] = MappingProxyType(
     {
-        "context": 0.7320,
-        "outline_dif": -0.3765,
-        "frame": 0.1325,
-        "coverage": 0.3573,
-        "margin": 0.1417,
-        "lead": 2.9059,
-        "appearance": 1.2663,
+        "context": 0.7993,
+        "outline_dif": -0.3771,
+        "frame": 0.1604,
+        "coverage": 0.2950,
+        "margin": -0.2136,
+        "lead": 2.5434,
+        "appearance": 1.6707,
+        "template": 0.8949,
+        "template_support": 0.6628,
+        "template_gain": 1.8614,
+        "box_density": -0.8235,
     }
 )
 
 #: the terms :func:`detection_terms` gives (one detection, its image alone)
 DETECTION_TERMS = ("context", "outline_dif", "frame", "coverage")
+#: the terms a detection record carries from its image's edge map (the upright template
+#: check, :mod:`._template`)
+RECORD_TERMS = TEMPLATE_TERMS
 
 
 def detection_terms(
@@ -157,9 +169,9 @@ def rescore_collection(
     scores : array_like, shape (N,)
         Each detection's own ranking score.
     terms : mapping
-        ``context``, ``outline_dif``, ``frame``, ``coverage`` (:func:`detection_terms`)
-        and ``appearance`` (:func:`~shapetree.detection.appearance_agreement`), each an
-        array of shape (N,).
+        ``context``, ``outline_dif``, ``frame``, ``coverage`` (:func:`detection_terms`),
+        the four template terms (:attr:`Detection.template`) and ``appearance``
+        (:func:`~shapetree.detection.appearance_agreement`), each an array of shape (N,).
     context_check : float
         The ``DetectParams.context_check`` the scores were made with (their ``base`` is
         ``score - context_check * context``).
@@ -179,7 +191,7 @@ def rescore_collection(
     keys = list(image_keys)
     n = len(keys)
     s = np.asarray(scores, dtype=np.float64)
-    missing = [t for t in (*DETECTION_TERMS, "appearance") if t not in terms]
+    missing = [t for t in (*DETECTION_TERMS, *RECORD_TERMS, "appearance") if t not in terms]
     if missing:
         raise ShapeTreeError(f"rescore_collection: terms {missing} missing")
     table: dict[str, Any] = {t: np.asarray(terms[t], dtype=np.float64) for t in terms}
@@ -213,8 +225,8 @@ def collection_table(
     image_keys : sequence, length N
         The image of each detection.
     detections : sequence of mapping, length N
-        Each with ``score``, ``bbox``, ``coverage`` and ``image_points`` (as in a
-        :meth:`Detection.to_json` record).
+        Each with ``score``, ``bbox``, ``coverage``, ``image_points`` and the four
+        template terms (as in a :meth:`Detection.to_json` record).
     model_points : array_like, shape (m, 2)
         The model's samples (the same model for every detection).
     image_shapes : mapping
@@ -244,6 +256,15 @@ def collection_table(
         for k, d in zip(keys, detections, strict=True)
     ]
     terms = {t: np.array([r[t] for r in rows]) for t in DETECTION_TERMS}
+    for t in RECORD_TERMS:
+        try:
+            terms[t] = np.array([float(d[t]) for d in detections])
+        except KeyError:
+            raise ShapeTreeError(
+                f"collection_table: a detection record has no {t!r} (made by a shapetree "
+                "release before the template check); detect again, or pass "
+                "collection_rescore=False"
+            ) from None
     terms["appearance"] = agreement
     return rescore_collection(keys, scores, terms, params.context_check)
 
@@ -253,7 +274,8 @@ def collection_formula(params: DetectParams) -> str:
     if params.collection_rescore:
         return (
             "the re-scorer (shapetree.detection.rescore_collection): base score plus fixed "
-            "weights of context, outline_dif, frame, coverage, margin, lead and appearance, "
-            "fitted on the ETHZ Pb detections"
+            "weights of context, outline_dif, frame, coverage, margin, lead, appearance and "
+            "the upright template check (template, template_support, template_gain, "
+            "box_density), fitted on the ETHZ Pb detections"
         )
     return "score + appearance_check * appearance"
