@@ -248,6 +248,7 @@ def test_evaluate_ethz_collection_stage_reranks_the_cache(
         want = d["base"] + sum(w * d[t] for t, w in RESCORER_WEIGHTS.items())
         assert d["collection_score"] == pytest.approx(want)
         assert d["base"] == pytest.approx(d["score"] - 0.15 * d["context"])
+        assert 0.0 <= d["template"] <= 1.0 and 0.0 <= d["box_density"] <= 1.0
     for doc in results.values():
         cs = [d["collection_score"] for d in doc["detections"]]
         assert cs == sorted(cs, reverse=True)

@@ -40,6 +40,7 @@ from shapetree._errors import DatasetError, ShapeTreeError
 from shapetree.datasets._registry import ETHZ_CLASSES as _REGISTRY_CLASSES
 
 from ._detect import DetectParams, detect_detailed
+from ._template import TEMPLATE_TERMS
 
 __all__ = ["evaluate_ethz", "ethz_root", "ETHZ_CLASSES", "dr_at_fppi", "dr_fppi_curve"]
 
@@ -380,6 +381,7 @@ def _run_one(
                 "image_points": np.round(d.image_points, 2).tolist(),
                 "matched": [bool(v) for v in d.matched],
                 "pieces": [[int(p["contour"]), bool(p["reversed"])] for p in d.pieces],
+                **{t: float(getattr(d, t)) for t in TEMPLATE_TERMS},
             }
             for d in run.detections
         ],
