@@ -42,6 +42,7 @@ KERNEL_MODULES = (
     "matching/_bound.py",
     "matching/_subcurves.py",
     "detection/_stitch.py",
+    "detection/_template.py",
 )
 
 
