@@ -19,7 +19,11 @@ What is measured, per size ``n = m``:
   sizes up to ``--reference-max``; the ratio reference/kernel is taken at the same size;
 * ``stack``: the retrieval engine's path, all models against a target in one kernel call
   (``ModelStack``), in float64 and in float32 (the engine's default precision), exact and
-  with ``band=3``; ``f32 x`` is the float32 speed-up over float64 in the same run.
+  with ``band=3``; ``f32 x`` is the float32 speed-up over float64 in the same run;
+* ``dense``: the same stack, float32, ``band=3``, against the targets sampled at ``2n``
+  points (``target_factor=2``, the held-out choices' setting);
+* ``chunk x``: one shape-tree's tables against such a target filled node by node over
+  the time with the kernel's chunks of target lengths (same tables, checked bit for bit).
 
 The options of issue 15 (``--option-sizes``, default n = m = 16, 24, 32, 50; one matching
 of one pair, float64, cost only, ratios to the directed Procrustes shape-tree matcher in
@@ -38,6 +42,7 @@ the same run and with the same band):
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -56,6 +61,8 @@ from shapetree.matching import (  # noqa: E402
     prepare_target,
 )
 from shapetree.matching._batch import ModelStack  # noqa: E402
+from shapetree.matching._kernels import fill_tables, length_chunk  # noqa: E402
+from shapetree.matching._match import _bands  # noqa: E402
 from shapetree.matching._reference import reference_match_cost  # noqa: E402
 from shapetree.matching._subcurves import pair_curve, pair_tables, pair_top  # noqa: E402
 from shapetree.tree import build_shape_tree  # noqa: E402
@@ -89,6 +96,38 @@ def time_once(fn, repeats: int) -> float:
     if first > 2.0:
         return first
     return timeit(fn, repeats)
+
+
+def fill_order(model, target, repeats: int) -> dict:
+    """One shape-tree's tables (float32, band 3) filled node by node (one chunk of every
+    target length) and by the kernel's chunks of lengths (:func:`._kernels.fill_tables`),
+    timed in turn; the tables are checked to be the same bit for bit."""
+    td = model.trees[0]
+    m = target.n_points
+    lmin, lmax = _bands(td, m, 3.0)
+    # entries outside the bands are never written: both start from the same value
+    tabs = {c: np.full((td.n_tables, m, 2 * m), -1.0, np.float32) for c in (0, 10**6)}
+
+    def run(chunk):
+        fill_tables(
+            td.left_tab, td.right_tab, *td.kernel_arrays(np.float32), target.tri, target.deg,
+            target.base_table("procrustes"), target.blen, True, 0.0, 1.0, lmin, lmax,
+            tabs[chunk], False, chunk,
+        )  # fmt: skip
+
+    best = {c: np.inf for c in tabs}
+    for _ in range(max(3, repeats)):
+        for c in tabs:  # in turn, so that a drift of the machine's speed hits both
+            t0 = time.perf_counter()
+            run(c)
+            best[c] = min(best[c], time.perf_counter() - t0)
+    assert np.array_equal(tabs[0], tabs[10**6]), "the fill order changed a table"
+    return {
+        "fill_dense_node_by_node_ms": 1e3 * best[10**6],
+        "fill_dense_chunked_ms": 1e3 * best[0],
+        "fill_dense_chunk": int(length_chunk(m, 4)),
+        "fill_dense_chunk_speedup": best[10**6] / best[0],
+    }
 
 
 def option_rows(sizes: list[int], repeats: int) -> list[dict]:
@@ -173,8 +212,6 @@ def main(argv: list[str] | None = None) -> int:
     reps = 3 if args.quick else 7
     command = "python benchmarks/bench_match.py" + (" " + " ".join(argv) if argv else "")
     if args.options_only:
-        import json
-
         opt = option_rows(args.option_sizes, reps)
         print_options(opt)
         out = json.loads(args.json.read_text()) if args.json.exists() else {}
@@ -234,6 +271,19 @@ def main(argv: list[str] | None = None) -> int:
 
                 key = f"stack_{tag}" + ("" if band is None else f"_band{band:g}") + "_ms"
                 row[key] = 1e3 * timeit(run_stack, reps) / len(pairs) ** 2
+        # the dense target of the held-out choices (README, "Pairwise accuracy"): the
+        # target sampled at 2n points, float32, band 3, as the engine runs it
+        dense = [
+            prepare_target(resample(b, 2 * n, closed=True), dtype=np.float32) for _, b in pairs
+        ]
+        stack = ModelStack(models, 2 * n, MatchParams(band=3.0), dtype=np.float32)
+
+        def run_dense(stack=stack, tgs=dense):
+            for tg in tgs:
+                stack.costs(tg)
+
+        row["stack_f32_band3_dense_ms"] = 1e3 * timeit(run_dense, reps) / len(pairs) ** 2
+        row.update(fill_order(models[0], dense[0], reps))
         row["f32_speedup"] = row["stack_f64_ms"] / row["stack_f32_ms"]
         row["f32_band3_speedup"] = row["stack_f64_band3_ms"] / row["stack_f32_band3_ms"]
         if n in args.reference_sizes:
@@ -256,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
     hdr = (
         f"{'n=m':>5} {'exact ms':>9} {'match/s':>8} {'+corr ms':>9} {'prep ms':>8} "
         + " ".join(f"{'band' + format(b, 'g') + ' x':>9} {'Δcost':>7}" for b in args.bands)
-        + f" {'stack32':>8} {'f32 x':>6} {'st32 b3':>8} {'f32 x':>6}"
+        + f" {'stack32':>8} {'f32 x':>6} {'st32 b3':>8} {'f32 x':>6} {'dense b3':>8} {'chunk x':>7}"
         + f" {'ref ms':>9} {'ref/kern':>9}"
     )
     print("Closed-curve matching, one shape-tree, one core (medians)")
@@ -272,6 +322,7 @@ def main(argv: list[str] | None = None) -> int:
         line += (
             f"{r['stack_f32_ms']:>8.3f} {r['f32_speedup']:>6.2f} "
             f"{r['stack_f32_band3_ms']:>8.3f} {r['f32_band3_speedup']:>6.2f} "
+            f"{r['stack_f32_band3_dense_ms']:>8.3f} {r['fill_dense_chunk_speedup']:>7.2f} "
         )
         if "reference_ms" in r:
             line += f"{r['reference_ms']:>9.0f} {r['reference_over_kernel']:>9.0f}"
@@ -292,6 +343,11 @@ def main(argv: list[str] | None = None) -> int:
         opt = option_rows(args.option_sizes, reps)
         print_options(opt)
         out["options"] = {"command": command, "machine": machine(), "rows": opt}
+    elif args.json.exists():
+        # not measured in this run: keep the earlier run's entry (it names its command)
+        earlier = json.loads(args.json.read_text()).get("options")
+        if earlier is not None:
+            out["options"] = earlier
     write_json(args.json, out)
     print(f"wrote {args.json}")
     return 0

@@ -40,6 +40,10 @@ UNSAFE = {"fast", "nnan", "ninf"}
 P, A, B = (0.0, 0.0), (1.0, 1.0), (1.0, -1.0)
 KERNELS = [
     kernels.fill_tables,
+    kernels.node_row,
+    kernels.one_split,
+    kernels.replace_row,
+    kernels.length_chunk,
     kernels.closed_root_min,
     kernels.closed_costs,
     kernels.target_tables,
@@ -222,6 +226,69 @@ def _with_repeats(n: int, rng: np.random.Generator, closed: bool) -> np.ndarray:
         if gaps.min() >= 2:
             b[idx] = b[idx[0]]
             return b
+
+
+# --- the order of the table fill -----------------------------------------------------
+
+
+def _tables(model, target, params, chunk):
+    td = model.trees[0]
+    m = target.n_points
+    lmin, lmax = _bands(td, m, params.band)
+    dt = target.tri.dtype
+    tab = np.full((td.n_tables, m, 2 * m), -7.0, dtype=dt)  # unwritten entries stay -7
+    kernels.fill_tables(
+        td.left_tab,
+        td.right_tab,
+        *td.kernel_arrays(dt),
+        target.tri,
+        target.deg,
+        target.base_table(params.dif),
+        target.blen,
+        target.closed,
+        params.kernel_occlusion,
+        float(params.segment_weight),
+        lmin,
+        lmax,
+        tab,
+        params.hyper,
+        chunk,
+    )
+    return tab
+
+
+@pytest.mark.parametrize("closed", [False, True])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_table_fill_order_changes_no_bit(closed, dtype):
+    """fill_tables fills the nodes' rows by chunks of target lengths; one chunk holding
+    every length is the node-by-node order. Every chunk size gives the same tables, bit
+    for bit, with bands, occlusion, the hyperbolic dif and zero-size target triangles."""
+    rng = np.random.default_rng(_seed("fill-order", closed, np.dtype(dtype).name))
+    cases = [(blob(int(rng.integers(6, 15)), rng, closed=closed), None) for _ in range(3)]
+    if closed:
+        cases.append((blob(8, rng), _clover()))
+    for a, b in cases:
+        if b is None:
+            b = blob(int(rng.integers(12, 30)), rng, closed=closed)
+        target = prepare_target(b, closed=closed, dtype=dtype)
+        m = target.n_points
+        for dif in ("procrustes", "hyperbolic"):
+            model = prepare_model(a, closed=closed, dif=dif)
+            for band, occlusion in ((None, None), (3.0, None), (2.0, 0.5), (None, 0.5)):
+                params = MatchParams(band=band, occlusion=occlusion, dif=dif)
+                one = _tables(model, target, params, 10**6)
+                for chunk in (1, 2, 5, 0):
+                    np.testing.assert_array_equal(_tables(model, target, params, chunk), one)
+                assert (one[:, 1:, :m] != -7).any()  # rows were written
+
+
+def test_length_chunk_keeps_a_chunk_of_triangle_planes_near_the_budget():
+    assert kernels.length_chunk(200, 4) == 1  # one plane is 480 kB: no room for two
+    assert kernels.length_chunk(10_000, 8) == 1  # never 0
+    for m, size in ((50, 8), (64, 4), (100, 4)):
+        c = kernels.length_chunk(m, size)
+        assert c >= 2
+        assert c * 3 * m * m * size <= kernels.CHUNK_BYTES < (c + 1) * 3 * m * m * size
 
 
 @pytest.mark.parametrize("closed", [False, True])

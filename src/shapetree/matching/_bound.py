@@ -80,16 +80,14 @@ from numba import njit
 
 from shapetree.geometry._dif import (
     FASTMATH,
-    hyperbolic_den,
-    hyperbolic_ratio,
-    lagrange_form,
 )
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._kernels import (
     SENTINEL,
     closed_root_min,
-    degenerate_split,
     finite_or_inf,
+    node_row,
+    replace_row,
 )
 from shapetree.matching._match import MatchParams
 from shapetree.matching._prepare import Model, Target, TreeData
@@ -228,70 +226,36 @@ def fill_bound_tables(
                 for s in range(ns):
                     best[s] = pl[s] + pre[s]
             else:
-                q1 = ra1[v]
-                qr = ra2r[v]
-                qi = ra2i[v]
-                lt = left_tab[v]
-                rt = right_tab[v]
-                for s in range(ns):
-                    best[s] = SENTINEL
-                k0 = max(1, lmin[lt], length - lmax[rt])
-                k1 = min(length - 1, lmax[lt], length - lmin[rt])
-                # the dif chosen outside the split loop, as in the kernel (vectorisation)
-                if hyper:
-                    lvh = lam[v]
-                    for k in range(k0, k1 + 1):
-                        lrow = tab[lt, k]
-                        rrow = tab[rt, length - k, k : k + ns]
-                        z1 = tri[length, k, 0]
-                        zr = tri[length, k, 1]
-                        zi = tri[length, k, 2]
-                        if deg is not None:
-                            if deg[length, k]:
-                                degenerate_split(
-                                    best, lrow, rrow, lvh, q1, qr, qi, z1, zr, zi, ns, True
-                                )
-                                continue
-                        for s in range(ns):
-                            num = lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
-                            den = hyperbolic_den(q1, qr, qi, z1[s], zr[s], zi[s])
-                            c = lrow[s] + rrow[s] + lvh * hyperbolic_ratio(num, den)
-                            b = best[s]
-                            best[s] = c if c < b else b
-                else:
-                    for k in range(k0, k1 + 1):
-                        lrow = tab[lt, k]
-                        rrow = tab[rt, length - k, k : k + ns]
-                        z1 = tri[length, k, 0]
-                        zr = tri[length, k, 1]
-                        zi = tri[length, k, 2]
-                        if deg is not None:
-                            if deg[length, k]:
-                                degenerate_split(
-                                    best, lrow, rrow, lam[v], q1, qr, qi, z1, zr, zi, ns, False
-                                )
-                                continue
-                        for s in range(ns):
-                            c = lrow[s] + rrow[s] + lagrange_form(q1, qr, qi, z1[s], zr[s], zi[s])
-                            b = best[s]
-                            best[s] = c if c < b else b
+                # a kept node: the kernel's own row (the same loops, the same numbers)
+                node_row(
+                    tab,
+                    v,
+                    length,
+                    ns,
+                    left_tab,
+                    right_tab,
+                    ra1,
+                    ra2r,
+                    ra2i,
+                    flat,
+                    lam,
+                    tri,
+                    deg,
+                    lmin,
+                    lmax,
+                    hyper,
+                )
             if occl:
-                brow = blen[length]
-                for s in range(ns):
-                    r = occlusion * lv * (la + brow[s])
-                    if r < best[s]:
-                        best[s] = r
+                replace_row(best, lv, la, blen[length], ns, occlusion)
             if doubled:
                 for s in range(m):
                     best[m + s] = best[s]
             if want_prof:
                 for s in range(m):
-                    c = best[s]
-                    ps[s] = c if c < ps[s] else ps[s]
+                    ps[s] = np.minimum(ps[s], best[s])
                 seg = pe[length : length + m]
                 for s in range(m):
-                    c = best[s]
-                    seg[s] = c if c < seg[s] else seg[s]
+                    seg[s] = np.minimum(seg[s], best[s])
         if want_prof:
             for s in range(m):
                 a = pe[s]
