@@ -78,9 +78,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from shapetree.geometry._dif import (
-    FASTMATH,
-)
+from shapetree.geometry._dif import FASTMATH
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._kernels import (
     SENTINEL,

@@ -143,9 +143,10 @@ def node_row(
     the loads and stores of the running minimum), their rows indexed directly, and the
     minimum is ``np.minimum``, which LLVM turns into a blend and a plain store; the
     equivalent ``c if c < b else b`` became a masked store (``vmaskmovps``), which on the
-    AMD EPYC here ran the loop 3.4x slower. The minimum of the same values in another order
-    is the same number, so the tables are bit for bit those of a one-split loop (no NaN
-    can reach them: curves are validated and nothing here divides by zero).
+    AMD EPYC here ran the loop 3.4x slower (a scratch microbenchmark of the loop alone).
+    The minimum of the same values in another order is the same number, so the tables are
+    bit for bit those of a one-split loop (no NaN can reach them: curves are validated and
+    nothing here divides by zero).
     """
     best = tab[v, length]
     if length == 1:
@@ -312,8 +313,8 @@ def fill_tables(
     reads its children's rows of lengths ``< L`` only, which earlier chunks, or earlier
     nodes of this chunk, have filled, so every entry is the same number as in a
     node-by-node fill; the chunks keep the triangle planes ``tri[L]`` of the chunk in
-    cache for all the nodes that use them (2.4x at ``n = 100``, ``m = 200``, where
-    ``tri`` takes 96 MB in float32).
+    cache for all the nodes that use them (1.35x at ``n = 100``, ``m = 200``, where
+    ``tri`` takes 96 MB in float32: ``chunk x`` of ``benchmarks/bench_match.py``).
     """
     m = g.shape[1]
     n_nodes = lam.shape[0]
