@@ -243,29 +243,26 @@ def verdict(name: str, value: Any) -> dict[str, Any]:
     }
 
 
-def _cached_rows(cache: Path, cfg: MatchConfig, n: int) -> np.ndarray | None:
-    """The finished leading row blocks of this script's full MPEG-7 run (its cache folder
-    is the one whose ``params.json`` has ``cfg`` and n x n curves), or ``None``."""
-    from shapetree.retrieval._engine import read_block
+def _cached_rows(cache: Path, cfg: MatchConfig, curves: list) -> np.ndarray | None:
+    """The finished leading row blocks of this script's full MPEG-7 run over ``curves`` in
+    this order, or ``None``. The folder and every block are found by the engine's own cache
+    key (code fingerprint, options and the sampled curves in order), so the rows of a run
+    with another query order (``--mpeg7-every``) or other code are never read."""
+    from shapetree.retrieval._engine import _cache_key, _prep_models, _prep_targets, read_block
 
-    want = {k: v for k, v in cfg.as_dict().items() if k != "symmetrize"}
-    best = None
-    for info in sorted(cache.glob("*/params.json")):
-        spec = json.loads(info.read_text())
-        if spec.get("n_models") != n or spec.get("n_targets") != n:
-            continue
-        if any(spec.get(k) != v for k, v in want.items()):
-            continue
-        parts = []
-        for r0 in range(0, n, MPEG7_BLOCK):
-            r1 = min(n, r0 + MPEG7_BLOCK)
-            arr = read_block(info.parent / f"rows_{r0:06d}_{r1:06d}.blk", {"rows": [r0, r1]})
-            if arr is None:
-                break
-            parts.append(arr)
-        if parts and (best is None or sum(p.shape[1] for p in parts) > best.shape[1]):
-            best = np.concatenate(parts, axis=1)
-    return best
+    ms = _prep_models(curves, cfg, "model curve")
+    key = _cache_key(ms, _prep_targets(curves, cfg, "target curve"), cfg)
+    folder = cache / key[:32]
+    n = len(curves)
+    parts = []
+    for r0 in range(0, n, MPEG7_BLOCK):
+        r1 = min(n, r0 + MPEG7_BLOCK)
+        meta = {"key": key, "rows": [r0, r1], "shape": [cfg.n_pass, r1 - r0, n]}
+        arr = read_block(folder / f"rows_{r0:06d}_{r1:06d}.blk", meta)
+        if arr is None:
+            break
+        parts.append(arr)
+    return np.concatenate(parts, axis=1) if parts else None
 
 
 def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
@@ -303,7 +300,7 @@ def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
         rec["score"] = rec["pairwise"]["bullseye"]
         rec["scored_on"] = "the full set (1400 shapes), the paper's measure (bull's-eye, k = 40)"
     else:
-        rows = _cached_rows(cache, cfg, n) if cfg.symmetrize == "none" else None
+        rows = _cached_rows(cache, cfg, curves) if cfg.symmetrize == "none" else None
         if rows is not None and rows.shape[1] >= nq:
             # the largest finished prefix made of whole stratified samples
             nq = rows.shape[1] // nq * nq
