@@ -270,6 +270,21 @@ def _cached_rows(
     return np.concatenate(parts, axis=1) if parts else None
 
 
+def _sample_record(rec: dict, name: str, key: str, full: bool) -> None:
+    """Print ``rec["query_sample"]``; without the full matrix its estimate is the score,
+    labelled as such; add the paper, target, goal and verdict."""
+    print(f"{name} query sample: {rec['query_sample']}", flush=True)
+    if not full:
+        n = FULL_SIZE[name]
+        rec["score"] = rec["query_sample"][key]
+        rec["scored_on"] = (
+            f"ESTIMATE, not the target: {rec['query_sample']['measure']}; the full {n} x "
+            f"{n} matrix was not finished (--{name.split('_')[0]}-full)"
+        )
+    rec["paper"], rec["target"], rec["goal"] = PAPER[name], TARGET[name], GOAL[name]
+    rec["verdict"] = verdict(name, rec["score"])
+
+
 def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
     """MPEG-7: the full matrix (``--mpeg7-full``) in an order whose first rows are a
     class-stratified query sample (every ``--mpeg7-every``-th shape), and the bull's-eye of
@@ -338,15 +353,7 @@ def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
         "class) against all 1400, bull's-eye k = 40 of those queries (exact per query; mean "
         "+- standard error)",
     }
-    print(f"mpeg7 query sample: {rec['query_sample']}", flush=True)
-    if not args.mpeg7_full:
-        rec["score"] = rec["query_sample"]["bullseye"]
-        rec["scored_on"] = (
-            f"ESTIMATE, not the target: {rec['query_sample']['measure']}; the full 1400 x "
-            "1400 matrix was not finished (--mpeg7-full)"
-        )
-    rec["paper"], rec["target"], rec["goal"] = PAPER["mpeg7"], TARGET["mpeg7"], GOAL["mpeg7"]
-    rec["verdict"] = verdict("mpeg7", rec["score"])
+    _sample_record(rec, "mpeg7", "bullseye", args.mpeg7_full)
     rec["command"] = (
         f"python benchmarks/eval_beyond.py --targets mpeg7 --mpeg7-every {args.mpeg7_every}"
         + (" --mpeg7-full" if args.mpeg7_full else "")
@@ -468,16 +475,7 @@ def swedish_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
         rec["seconds_matrix"] = round(time.perf_counter() - t0, 1)
     queries = perm[:nq]
     rec["query_sample"] = swedish_sample_accuracy(rows, queries, labels)
-    print(f"swedish_leaf query sample: {rec['query_sample']}", flush=True)
-    if not args.swedish_full:
-        rec["score"] = rec["query_sample"]["accuracy_mean"]
-        rec["scored_on"] = (
-            f"ESTIMATE, not the target: {rec['query_sample']['measure']}; the full 1125 x "
-            "1125 matrix was not finished (--swedish-full)"
-        )
-    rec["paper"] = PAPER["swedish_leaf"]
-    rec["target"], rec["goal"] = TARGET["swedish_leaf"], GOAL["swedish_leaf"]
-    rec["verdict"] = verdict("swedish_leaf", rec["score"])
+    _sample_record(rec, "swedish_leaf", "accuracy_mean", args.swedish_full)
     if not rec["verdict"]["reached"]:
         D = np.full((len(labels), len(labels)), np.inf)
         D[queries] = rows
