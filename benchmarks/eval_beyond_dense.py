@@ -199,7 +199,9 @@ def score_no_limit(args: argparse.Namespace, cache: Path, argv: list[str] | None
         print(f"{target}: scoring the no-time-limit choice {label} ...", flush=True)
         t0 = time.perf_counter()
         if target == "swedish_leaf":  # exhaustive, resumable in query-sample order
-            base.swedish_run(cfg, cache, ns, rec)
+            within = out["targets"].get(target, {})
+            ref = (within["chosen"], cands[within["chosen"]], within["score"]) if within else None
+            base.swedish_run(cfg, cache, ns, rec, reference=ref)
         else:
             base.full_run(target, cfg, cache, ns, rec)
         rec["command"] = "python3 benchmarks/eval_beyond_dense.py " + " ".join(
