@@ -287,12 +287,56 @@ def _sample_record(rec: dict, name: str, key: str, full: bool) -> None:
         rec["verdict"]["of"] = "the query sample's ESTIMATE, not a full score"
 
 
-def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
+def _sample_hits(rows: np.ndarray, lab: np.ndarray) -> np.ndarray:
+    """Same-class items among the 40 nearest of each query ``i`` (row ``i``, item ``i``
+    itself first among items at its distance), in the order of ``lab``."""
+    d = rows.copy()
+    nq = d.shape[0]
+    d[np.arange(nq), np.arange(nq)] = -np.inf
+    return (lab[np.argsort(d, axis=1, kind="stable")[:, :40]] == lab[:nq, None]).sum(axis=1)
+
+
+def _paired_reference(
+    estimate: float,
+    per_query: np.ndarray,
+    ref_per_query: np.ndarray,
+    ref_estimate: float,
+    label: str,
+    ref_full: float,
+) -> dict[str, Any]:
+    """Another configuration with a full score, scored on the same query sample: how far
+    the sample's estimate lies from a full score, and the full score plus the gain on these
+    queries (the standard error of the paired per-query difference)."""
+    diff = np.asarray(per_query, float) - np.asarray(ref_per_query, float)
+    gain = estimate - ref_estimate
+    return {
+        "config": label,
+        "full_score": ref_full,
+        "sample_estimate": round(ref_estimate, 2),
+        "sample_stderr": round(100 * float(np.std(ref_per_query, ddof=1) / np.sqrt(diff.size)), 2),
+        "sample_minus_full": round(ref_estimate - ref_full, 2),
+        "paired_gain": round(gain, 2),
+        "paired_gain_stderr": round(100 * float(diff.std(ddof=1) / np.sqrt(diff.size)), 2),
+        "paired_estimate": round(ref_full + gain, 2),
+        "note": "another configuration, scored on the same queries and on the full set: how "
+        "far this sample's estimate lies from a full score; paired_estimate = its full score "
+        "+ the gain on these queries (standard error of the paired gain over queries)",
+    }
+
+
+def mpeg7_run(
+    cfg: MatchConfig,
+    cache: Path,
+    args,
+    rec: dict,
+    reference: tuple[str, MatchConfig, float] | None = None,
+) -> None:
     """MPEG-7: the full matrix (``--mpeg7-full``) in an order whose first rows are a
     class-stratified query sample (every ``--mpeg7-every``-th shape), and the bull's-eye of
     that sample against all 1400 (exact per query; the mean estimates the full score, with
     its standard error). Without ``--mpeg7-full`` only the sample is scored (from the
-    finished blocks of an interrupted full run when there are enough)."""
+    finished blocks of an interrupted full run when there are enough), and ``reference``
+    (label, configuration, its full score) on the same queries too (:func:`_paired_reference`)."""
     ds = datasets.load("mpeg7", n_points=None, progress=False)
     labels = np.asarray(ds.labels)
     n = len(labels)
@@ -342,9 +386,7 @@ def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
             rows = np.minimum(rows, cols) if cfg.symmetrize == "min" else (rows + cols) / 2
         D[:nq] = rows
         rec["seconds_matrix"] = round(time.perf_counter() - t0, 1)
-    d = D[:nq].copy()
-    d[np.arange(nq), np.arange(nq)] = -np.inf  # the query first among items at its distance
-    hits = (lab[np.argsort(d, axis=1, kind="stable")[:, :40]] == lab[:nq, None]).sum(axis=1)
+    hits = _sample_hits(D[:nq], lab)
     frac = hits / 20.0
     rec["query_sample"] = {
         "queries": nq,
@@ -356,6 +398,21 @@ def mpeg7_run(cfg: MatchConfig, cache: Path, args, rec: dict) -> None:
         "+- standard error)",
     }
     _sample_record(rec, "mpeg7", "bullseye", args.mpeg7_full)
+    if reference is not None and not args.mpeg7_full:
+        label, ref_cfg, ref_full = reference
+        ref_rows = directed_costs(
+            curves[:nq], curves, ref_cfg, cache_dir=cache, block=MPEG7_BLOCK, progress=True
+        )
+        ref_frac = _sample_hits(ref_rows.min(axis=0), lab) / 20.0
+        rec["query_sample_reference"] = _paired_reference(
+            rec["query_sample"]["bullseye"],
+            frac,
+            ref_frac,
+            100 * float(ref_frac.mean()),
+            label,
+            ref_full,
+        )
+        print(f"mpeg7 sample reference: {rec['query_sample_reference']}", flush=True)
     rec["command"] = (
         f"python benchmarks/eval_beyond.py --targets mpeg7 --mpeg7-every {args.mpeg7_every}"
         + (" --mpeg7-full" if args.mpeg7_full else "")
@@ -493,22 +550,14 @@ def swedish_run(
             curves[:nq], curves, ref_cfg, cache_dir=cache, block=SWEDISH_BLOCK, progress=True
         )
         est, ref_share = swedish_sample_accuracy(ref_rows.min(axis=0)[:, inv], queries, labels)
-        gain = rec["query_sample"]["accuracy_mean"] - est["accuracy_mean"]
-        diff = share - ref_share
-        rec["query_sample_reference"] = {
-            "config": label,
-            "full_score": ref_full,
-            "sample_estimate": est["accuracy_mean"],
-            "sample_stderr": est["stderr"],
-            "sample_minus_full": round(est["accuracy_mean"] - ref_full, 2),
-            "paired_gain": round(gain, 2),
-            "paired_gain_stderr": round(100 * float(diff.std(ddof=1) / np.sqrt(diff.size)), 2),
-            "paired_estimate": round(ref_full + gain, 2),
-            "note": "another configuration, scored on the same queries and on the full set: "
-            "how far this sample's estimate lies from a full score; paired_estimate = its "
-            "full score + the gain on these queries (standard error of the paired gain over "
-            "queries)",
-        }
+        rec["query_sample_reference"] = _paired_reference(
+            rec["query_sample"]["accuracy_mean"],
+            share,
+            ref_share,
+            est["accuracy_mean"],
+            label,
+            ref_full,
+        )
         print(f"swedish_leaf sample reference: {rec['query_sample_reference']}", flush=True)
     if not rec["verdict"]["reached"] or not args.swedish_full:
         D = np.full((len(labels), len(labels)), np.inf)
