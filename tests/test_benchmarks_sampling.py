@@ -1,0 +1,81 @@
+"""The query-sample estimators of ``benchmarks/eval_beyond.py`` against the full protocols.
+
+The held-out MPEG-7 and Swedish-leaf figures of the README that are marked as estimates
+come from these functions; with every item a query they must give the full protocol's
+numbers exactly (the oracle is :mod:`shapetree.retrieval`'s own protocol code).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shapetree.retrieval import nn_accuracy_splits
+from shapetree.retrieval._protocols import bullseye_per_query
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+eval_beyond = pytest.importorskip("eval_beyond")
+
+
+def _labels(n_classes: int, per_class: int) -> np.ndarray:
+    return np.repeat([f"c{i}" for i in range(n_classes)], per_class)
+
+
+def test_class_stratified_order_puts_the_sample_first() -> None:
+    labels = _labels(4, 75)
+    perm, nq = eval_beyond.class_stratified_order(labels, 8)
+    assert sorted(perm.tolist()) == list(range(300))
+    assert nq == 4 * 10  # positions 0, 8, ..., 72 of each class
+    first = perm[:nq]
+    assert np.all(np.unique(labels[first], return_counts=True)[1] == 10)
+    assert np.all(first % 75 % 8 == 0)
+
+
+def test_swedish_sample_with_every_item_is_the_protocol() -> None:
+    rng = np.random.default_rng(3)
+    labels = _labels(3, 40)
+    D = rng.random((120, 120)) + 0.03 * (labels[:, None] != labels[None, :])
+    mean, _ = nn_accuracy_splits(D, labels)
+    rec, share = eval_beyond.swedish_sample_accuracy(D, np.arange(120), labels)
+    assert rec["accuracy_mean"] == pytest.approx(mean, abs=0.005)
+    assert 60.0 < mean < 100.0  # neither trivial nor chance
+    assert share.shape == (120,) and np.all((share >= 0) & (share <= 1))
+
+
+def test_swedish_sample_uses_only_the_sampled_rows() -> None:
+    rng = np.random.default_rng(4)
+    labels = _labels(3, 40)
+    D = rng.random((120, 120))
+    queries = np.arange(0, 120, 4)
+    rec, _ = eval_beyond.swedish_sample_accuracy(D[queries], queries, labels)
+    D2 = D.copy()
+    others = np.setdiff1d(np.arange(120), queries)
+    D2[others] = rng.random((others.size, 120))  # rows of non-sampled items do not matter
+    rec2, _ = eval_beyond.swedish_sample_accuracy(D2[queries], queries, labels)
+    assert rec == rec2
+
+
+def test_mpeg7_sample_hits_are_the_bullseye_hits() -> None:
+    rng = np.random.default_rng(5)
+    labels = _labels(5, 20)
+    D = rng.random((100, 100)) + 0.3 * (labels[:, None] != labels[None, :])
+    np.fill_diagonal(D, 0.0)
+    np.testing.assert_array_equal(
+        eval_beyond._sample_hits(D, labels), bullseye_per_query(D, labels, k=40)
+    )
+
+
+def test_paired_reference_arithmetic() -> None:
+    mine = np.array([1.0, 1.0, 0.0, 1.0])
+    ref = np.array([1.0, 0.0, 0.0, 0.0])
+    rec = eval_beyond._paired_reference(75.0, mine, ref, 25.0, "ref", 30.0)
+    assert rec["paired_gain"] == 50.0
+    assert rec["paired_estimate"] == 80.0
+    assert rec["sample_minus_full"] == -5.0
+    # standard error of the per-query differences (0, 1, 0, 1): std 0.577 / 2
+    assert rec["paired_gain_stderr"] == pytest.approx(
+        100 * np.std([0, 1, 0, 1], ddof=1) / 2, abs=0.01
+    )
