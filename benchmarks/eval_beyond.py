@@ -438,18 +438,19 @@ def mpeg7_run(
     rec["picture"] = png.name
 
 
-def class_stratified_order(labels: np.ndarray, every: int) -> tuple[np.ndarray, int]:
-    """An order of the set whose first ``nq`` items are a class-stratified query sample:
-    in every class the items at positions 0, ``every``, 2 ``every``, ... (in the set's
-    order), then the other positions, nested as in :func:`mpeg7_run`. Returns the order
-    and ``nq``."""
+def class_stratified_order(labels: np.ndarray, every: int) -> tuple[np.ndarray, list[int]]:
+    """An order of the set whose first items are a class-stratified query sample: in every
+    class the items at positions 0, ``every``, 2 ``every``, ... (in the set's order), then
+    the positions ``every // 2`` on from there, then the others, nested as in
+    :func:`mpeg7_run`. Returns the order and the ends of those groups: each prefix that
+    ends there holds the same number of items of every class of equal size."""
     pos = np.empty(len(labels), dtype=np.int64)
     for c in np.unique(labels):
         idx = np.flatnonzero(labels == c)
         pos[idx] = np.arange(idx.size)
     offsets = list(dict.fromkeys([0, every // 2, *range(every)]))
-    perm = np.concatenate([np.flatnonzero(pos % every == o) for o in offsets])
-    return perm, int(np.count_nonzero(pos % every == 0))
+    groups = [np.flatnonzero(pos % every == o) for o in offsets]
+    return np.concatenate(groups), np.cumsum([g.size for g in groups]).tolist()
 
 
 def swedish_sample_accuracy(
@@ -506,7 +507,8 @@ def swedish_run(
     from a full score."""
     ds = datasets.load("swedish_leaf", n_points=None, progress=False)
     labels = np.asarray(ds.labels)
-    perm, nq = class_stratified_order(labels, args.swedish_every)
+    perm, ends = class_stratified_order(labels, args.swedish_every)
+    nq = ends[0]
     inv = np.argsort(perm)
     curves = [ds.curves[i] for i in perm]
     t0 = time.perf_counter()
@@ -532,6 +534,8 @@ def swedish_run(
             raise SystemExit("the Swedish-leaf query sample needs symmetrize='none'")
         rows = _cached_rows(cache, cfg, curves, SWEDISH_BLOCK)
         if rows is not None and rows.shape[1] >= nq:
+            # the largest finished prefix made of whole stratified samples
+            nq = max(e for e in ends if e <= rows.shape[1])
             rec["sample_from"] = (
                 f"the first {rows.shape[1]} rows of an unfinished full run ({nq} used)"
             )

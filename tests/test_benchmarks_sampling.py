@@ -26,12 +26,16 @@ def _labels(n_classes: int, per_class: int) -> np.ndarray:
 
 def test_class_stratified_order_puts_the_sample_first() -> None:
     labels = _labels(4, 75)
-    perm, nq = eval_beyond.class_stratified_order(labels, 8)
+    perm, ends = eval_beyond.class_stratified_order(labels, 8)
     assert sorted(perm.tolist()) == list(range(300))
-    assert nq == 4 * 10  # positions 0, 8, ..., 72 of each class
-    first = perm[:nq]
-    assert np.all(np.unique(labels[first], return_counts=True)[1] == 10)
+    assert ends[0] == 4 * 10  # positions 0, 8, ..., 72 of each class
+    assert ends[1] == 4 * 19  # then 4, 12, ..., 68
+    assert ends[-1] == 300 and len(ends) == 8
+    first = perm[: ends[0]]
     assert np.all(first % 75 % 8 == 0)
+    for e in ends:  # every prefix ending at a group end is stratified
+        counts = np.unique(labels[perm[:e]], return_counts=True)[1]
+        assert counts.size == 4 and np.all(counts == e // 4)
 
 
 def test_swedish_sample_with_every_item_is_the_protocol() -> None:
