@@ -56,6 +56,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _row_store  # noqa: E402
 from _common import RESULTS, machine, write_json  # noqa: E402
 from select_general import SETS  # noqa: E402
 
@@ -455,34 +456,35 @@ def class_stratified_order(labels: np.ndarray, every: int) -> tuple[np.ndarray, 
     return np.concatenate(groups), np.cumsum([g.size for g in groups]).tolist()
 
 
-def swedish_sample_accuracy(
-    rows: np.ndarray, queries: np.ndarray, labels: np.ndarray
-) -> tuple[dict[str, Any], np.ndarray]:
-    """The Swedish-leaf protocol restricted to a query sample: in each of its splits
-    (``split_masks`` with the protocol's defaults from ``EVAL_PARAMS``), the sampled
-    queries that are test items there are classified by their nearest training
-    item. ``rows[i]`` are query ``queries[i]``'s distances to every item (set order). The
-    mean over splits estimates the full mean accuracy (the sample is stratified like the
-    test items: the same number per class); the standard error is over queries (each
-    query's share of correct splits). Returns the record and those shares."""
+def swedish_splits(labels: np.ndarray) -> list[np.ndarray]:
+    """The Swedish-leaf protocol's training masks (``split_masks`` with the protocol's
+    defaults from ``EVAL_PARAMS``)."""
     from shapetree.retrieval._protocols import split_masks
 
-    correct = np.zeros(len(queries))
-    tested = np.zeros(len(queries))
-    accs = []
     p = {k: EVAL_PARAMS[k]["default"] for k in ("n_train", "n_splits", "seed")}
-    for train in split_masks(labels, p["n_train"], p["n_splits"], p["seed"]):
-        tr = np.flatnonzero(train)
-        te = np.flatnonzero(~train[queries])
-        nn = tr[np.argmin(rows[np.ix_(te, tr)], axis=1)]
-        ok = labels[nn] == labels[queries[te]]
-        correct[te] += ok
-        tested[te] += 1
-        accs.append(100.0 * float(ok.mean()))
-    share = correct / np.maximum(tested, 1)
+    return split_masks(labels, p["n_train"], p["n_splits"], p["seed"])
+
+
+def swedish_nn_accuracy(
+    nn: np.ndarray, queries: np.ndarray, labels: np.ndarray
+) -> tuple[dict[str, Any], np.ndarray]:
+    """The Swedish-leaf protocol on the queries ``queries`` from their nearest training
+    leaves ``nn`` (shape (len(queries), n_splits), ``-1`` where a query is a training leaf;
+    :func:`_row_store.split_nn`): in each split, the queries that are test items there are
+    classified by their nearest training leaf. With every item a query this is the
+    protocol (``nn_accuracy_splits``: mean and population standard deviation over the
+    splits). With a sample, the mean over splits estimates the full mean accuracy (the
+    sample is stratified like the test items: the same number per class); the standard
+    error is over queries (each query's share of correct splits). Returns the record and
+    those shares."""
+    tested = nn >= 0
+    correct = tested & (labels[np.maximum(nn, 0)] == labels[queries, None])
+    accs = [100.0 * float(correct[tested[:, s], s].mean()) for s in range(nn.shape[1])]
+    share = correct.sum(axis=1) / np.maximum(tested.sum(axis=1), 1)
     return {
         "queries": len(queries),
         "accuracy_mean": round(float(np.mean(accs)), 2),
+        "accuracy_std_splits": round(float(np.std(accs)), 2),
         "stderr": round(100 * float(share.std(ddof=1) / np.sqrt(share.size)), 2),
         "accuracy_splits": [round(a, 2) for a in accs],
         "measure": f"{len(queries)} queries ({len(queries) // len(np.unique(labels))} per "
@@ -493,6 +495,34 @@ def swedish_sample_accuracy(
     }, share
 
 
+def swedish_sample_accuracy(
+    rows: np.ndarray, queries: np.ndarray, labels: np.ndarray
+) -> tuple[dict[str, Any], np.ndarray]:
+    """:func:`swedish_nn_accuracy` from the queries' rows (``rows[i]``: query
+    ``queries[i]``'s distances to every item, set order)."""
+    nn = _row_store.split_nn(rows, queries, labels, swedish_splits(labels))
+    return swedish_nn_accuracy(nn, queries, labels)
+
+
+def swedish_store(cfg: MatchConfig, curves: list, every: int) -> _row_store.RowStore:
+    """The committed row summaries of the Swedish-leaf run of ``cfg`` in the stratified
+    order ``curves`` (see :mod:`_row_store`)."""
+    from shapetree.retrieval._engine import _cache_key, _prep_models, _prep_targets
+
+    key = _cache_key(
+        _prep_models(curves, cfg, "model curve"), _prep_targets(curves, cfg, "target curve"), cfg
+    )
+    meta = {
+        "what": "per-query summaries of the exhaustive Swedish-leaf run (benchmarks/"
+        "_row_store.py): nn[s] = the nearest training leaf in split s (-1: a training leaf "
+        "there), top = the 9 nearest leaves; indices in the dataset's order",
+        "config": cfg.as_dict(),
+        "order": f"class_stratified_order(labels, {every}), blocks of {SWEDISH_BLOCK} rows",
+    }
+    path = RESULTS / f"{PNG_PREFIX}_swedish_leaf_rows.json"
+    return _row_store.RowStore(path, key, meta)
+
+
 def swedish_run(
     cfg: MatchConfig,
     cache: Path,
@@ -501,57 +531,47 @@ def swedish_run(
     reference: tuple[str, MatchConfig, float] | None = None,
 ) -> None:
     """Swedish leaf exhaustively, in an order whose first rows are a class-stratified query
-    sample (every ``args.swedish_every``-th leaf of each class): the full matrix with
-    ``args.swedish_full`` (blocks of ``SWEDISH_BLOCK`` rows, cached, so a killed run
-    resumes across sessions), else the sample's estimate of the protocol (from the finished
-    leading blocks of an interrupted full run when there are enough). ``reference``
-    (label, configuration, its full score): without the full matrix, that configuration
-    is scored on the same query sample too, to show how far the sample's estimate lies
-    from a full score."""
+    sample (every ``args.swedish_every``-th leaf of each class). Each finished block of
+    ``SWEDISH_BLOCK`` rows is summarised in a committed file (:func:`swedish_store`), so
+    the run resumes across sessions and machines. With ``args.swedish_full`` every row is
+    computed and the score is the protocol's; else the score is the estimate from the
+    largest recorded prefix made of whole stratified groups (the first group is computed
+    when missing). ``reference`` (label, configuration, its full score): without the full
+    matrix, that configuration is scored on the same query sample too, to show how far
+    the sample's estimate lies from a full score."""
+    if cfg.symmetrize != "none":
+        raise SystemExit("the Swedish-leaf row store needs symmetrize='none'")
     ds = datasets.load("swedish_leaf", n_points=None, progress=False)
     labels = np.asarray(ds.labels)
     perm, ends = class_stratified_order(labels, args.swedish_every)
-    nq = ends[0]
     inv = np.argsort(perm)
     curves = [ds.curves[i] for i in perm]
+    n = len(curves)
+    store = swedish_store(cfg, curves, args.swedish_every)
+    splits = swedish_splits(labels)
     t0 = time.perf_counter()
-    if args.swedish_full:
-        stats: dict[str, Any] = {}
-        C = directed_costs(
-            curves, None, cfg, cache_dir=cache, block=SWEDISH_BLOCK, progress=True, stats=stats
-        )
-        D = combine(C, cfg.symmetrize)[np.ix_(inv, inv)]
-        mean, std, accs = nn_accuracy_splits(D, labels, return_splits=True)
-        rec["seconds_matrix"] = round(time.perf_counter() - t0, 1)
-        rec["pairs_computed"] = stats.get("pairs_computed")
-        rec["pairwise"] = {
-            "accuracy_mean": round(mean, 4),
-            "accuracy_std": round(std, 4),
-            "accuracy_splits": [round(float(a), 4) for a in accs],
-        }
-        rec["score"], rec["accuracy_std"] = rec["pairwise"]["accuracy_mean"], round(std, 4)
-        rec["scored_on"] = "the full set (1125 shapes), the paper's measure"
-        rows = D[perm[:nq]]
-    else:
-        if cfg.symmetrize != "none":
-            raise SystemExit("the Swedish-leaf query sample needs symmetrize='none'")
-        rows = _cached_rows(cache, cfg, curves, SWEDISH_BLOCK)
-        if rows is not None and rows.shape[1] >= nq:
-            # the largest finished prefix made of whole stratified samples
-            nq = max(e for e in ends if e <= rows.shape[1])
-            rec["sample_from"] = (
-                f"the first {rows.shape[1]} rows of an unfinished full run ({nq} used)"
-            )
-        else:
-            rows = directed_costs(
-                curves[:nq], curves, cfg, cache_dir=cache, block=SWEDISH_BLOCK, progress=True
-            )
-        rows = rows[:, :nq].min(axis=0)[:, inv]
-        rec["seconds_matrix"] = round(time.perf_counter() - t0, 1)
+    upto = n if args.swedish_full else max(ends[0], store.prefix(perm))
+    _row_store.fill(store, curves, cfg, cache, perm, labels, splits, upto=upto, block=SWEDISH_BLOCK)
+    rec["seconds_matrix"] = round(time.perf_counter() - t0, 1)
+    rec["rows_file"] = store.path.name
+    done = store.prefix(perm)
+    full = done == n
+    nq = n if full else max(e for e in ends if e <= done)
     queries = perm[:nq]
-    rec["query_sample"], share = swedish_sample_accuracy(rows, queries, labels)
-    _sample_record(rec, "swedish_leaf", "accuracy_mean", args.swedish_full)
-    if reference is not None and not args.swedish_full:
+    rec["query_sample"], share = swedish_nn_accuracy(store.nn(queries), queries, labels)
+    if full:
+        q = rec["query_sample"]
+        rec["pairwise"] = {
+            "accuracy_mean": q["accuracy_mean"],
+            "accuracy_std": q["accuracy_std_splits"],
+            "accuracy_splits": q["accuracy_splits"],
+        }
+        rec["score"], rec["accuracy_std"] = q["accuracy_mean"], q["accuracy_std_splits"]
+        rec["scored_on"] = "the full set (1125 shapes), the paper's measure"
+    else:
+        rec["sample_from"] = f"the first {done} rows of the run ({nq} used)"
+    _sample_record(rec, "swedish_leaf", "accuracy_mean", full)
+    if reference is not None and not full:
         label, ref_cfg, ref_full = reference
         ref_rows = directed_costs(
             curves[:nq], curves, ref_cfg, cache_dir=cache, block=SWEDISH_BLOCK, progress=True
@@ -566,31 +586,40 @@ def swedish_run(
             ref_full,
         )
         print(f"swedish_leaf sample reference: {rec['query_sample_reference']}", flush=True)
-    if not rec["verdict"]["reached"] or not args.swedish_full:
-        D = np.full((len(labels), len(labels)), np.inf)
-        D[queries] = rows
-        D[queries, queries] = -np.inf  # each query first among its own row
-        order = np.argsort(D[queries], axis=1, kind="stable")[:, 1:10]
-        wrong = (labels[order] != labels[queries, None]).sum(axis=1)
-        worst = [int(queries[j]) for j in sorted(range(nq), key=lambda j: (-wrong[j], j))[:8]]
-        D[queries, queries] = 0.0
-        png = RESULTS / f"{PNG_PREFIX}_swedish_leaf_worst.png"
-        from shapetree.plotting._retrieval import save_retrieval_grid
+    if not rec["verdict"]["reached"] or not full:
+        _swedish_worst(rec, store.top(queries), queries, labels, ds)
 
-        save_retrieval_grid(
-            D,
-            labels,
-            ds.curves,
-            png,
-            queries=worst,
-            n_top=9,
-            title="swedish_leaf: the 8 worst sampled queries (left), nearest leaves, wrong "
-            "class in red",
-        )
-        rec["worst_queries"] = [
-            {"index": i, "name": Path(ds.paths[i]).name, "class": str(labels[i])} for i in worst
-        ]
-        rec["picture"] = png.name
+
+def _swedish_worst(rec: dict, top: np.ndarray, queries: np.ndarray, labels, ds) -> None:
+    """The grid of the 8 queries with the most wrong leaves among their 9 nearest."""
+    from shapetree.plotting._retrieval import save_retrieval_grid
+
+    wrong = (labels[top] != labels[queries, None]).sum(axis=1)
+    worst = sorted(range(len(queries)), key=lambda j: (-wrong[j], j))[:8]
+    D = np.full((len(labels), len(labels)), np.inf)
+    for j in worst:  # ranks stand in for costs: the grid only orders them
+        D[queries[j], top[j]] = np.arange(1, top.shape[1] + 1)
+        D[queries[j], queries[j]] = 0.0
+    png = RESULTS / f"{PNG_PREFIX}_swedish_leaf_worst.png"
+    save_retrieval_grid(
+        D,
+        labels,
+        ds.curves,
+        png,
+        queries=[int(queries[j]) for j in worst],
+        n_top=top.shape[1],
+        title="swedish_leaf: the 8 worst sampled queries (left), nearest leaves, wrong "
+        "class in red",
+    )
+    rec["worst_queries"] = [
+        {
+            "index": int(queries[j]),
+            "name": Path(ds.paths[queries[j]]).name,
+            "class": str(labels[queries[j]]),
+        }
+        for j in worst
+    ]
+    rec["picture"] = png.name
 
 
 def full_run(name: str, cfg: MatchConfig, cache: Path, args, rec: dict) -> None:

@@ -39,6 +39,11 @@ target whose choice is the configuration ``eval_beyond.py`` already chose and sc
 that record (``same_as``), not rerun. Distance tables are cached (``--cache-dir``), so a
 killed run resumes.
 
+``--no-limit-targets swedish_leaf [--swedish-full]`` scores the no-time-limit choice on
+Swedish leaf exhaustively, in a class-stratified order. Its rows are summarised block by
+block in the committed ``results/beyond_paper_nolimit_swedish_leaf_rows.json``
+(``_row_store.py``), so the 5 h run resumes on another machine, in another session.
+
 Run::
 
     SHAPETREE_DATA=/work/shared/datasets nice python3 benchmarks/eval_beyond_dense.py \\
@@ -235,7 +240,8 @@ def main(argv: list[str] | None = None) -> int:
         "--swedish-full",
         action="store_true",
         help="with --no-limit-targets swedish_leaf: the full exhaustive matrix (about 5 h on "
-        "two cores; resumable), else the query sample's estimate",
+        "two cores; resumes from the committed row summaries), else the estimate from the "
+        "recorded rows",
     )
     ap.add_argument(
         "--swedish-every",

@@ -18,6 +18,7 @@ from shapetree.retrieval._protocols import bullseye_per_query
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 eval_beyond = pytest.importorskip("eval_beyond")
+row_store = pytest.importorskip("_row_store")
 
 
 def _labels(n_classes: int, per_class: int) -> np.ndarray:
@@ -83,3 +84,72 @@ def test_paired_reference_arithmetic() -> None:
     assert rec["paired_gain_stderr"] == pytest.approx(
         100 * np.std([0, 1, 0, 1], ddof=1) / 2, abs=0.01
     )
+
+
+def test_swedish_nn_accuracy_with_every_item_is_the_protocol_mean_and_std() -> None:
+    rng = np.random.default_rng(6)
+    labels = _labels(3, 40)
+    D = rng.random((120, 120)) + 0.02 * (labels[:, None] != labels[None, :])
+    mean, std, accs = nn_accuracy_splits(D, labels, return_splits=True)
+    queries = np.arange(120)
+    nn = row_store.split_nn(D, queries, labels, eval_beyond.swedish_splits(labels))
+    rec, _ = eval_beyond.swedish_nn_accuracy(nn, queries, labels)
+    assert rec["accuracy_mean"] == pytest.approx(mean, abs=0.005)
+    assert rec["accuracy_std_splits"] == pytest.approx(std, abs=0.005)
+    np.testing.assert_allclose(rec["accuracy_splits"], accs, atol=0.005)
+    # each query is a training leaf in the splits where nn says -1, and only there
+    for s, train in enumerate(eval_beyond.swedish_splits(labels)):
+        np.testing.assert_array_equal(nn[:, s] < 0, train)
+
+
+def test_nearest_others_leaves_the_query_out() -> None:
+    rows = np.array([[0.0, 3.0, 1.0, 2.0], [5.0, 0.0, 5.0, 1.0]])
+    top = row_store.nearest_others(rows, np.array([0, 1]), k=2)
+    np.testing.assert_array_equal(top, [[2, 3], [3, 0]])
+
+
+def test_row_store_round_trip_and_foreign_key(tmp_path: Path) -> None:
+    path = tmp_path / "rows.json"
+    store = row_store.RowStore(path, "k1", {"what": "test"})
+    store.add(0, 2, np.array([5, 3]), np.array([[1, -1], [0, 2]]), np.array([[1], [0]]))
+    again = row_store.RowStore(path, "k1", {})
+    assert again.rows == store.rows and again.blocks == {(0, 2)}
+    assert again.prefix(np.array([5, 3, 4])) == 2 and again.prefix(np.array([4, 5])) == 0
+    np.testing.assert_array_equal(again.nn(np.array([3])), [[0, 2]])
+    other = row_store.RowStore(path, "k2", {})  # other code or options: not read
+    assert other.rows == {} and other.prefix(np.array([5])) == 0
+
+
+def test_row_store_fill_matches_the_engine(tmp_path: Path) -> None:
+    from shapetree.matching import MatchConfig
+    from shapetree.retrieval import directed_costs
+
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    rng = np.random.default_rng(7)
+    curves = [
+        np.c_[(1 + a * np.cos(k * t)) * np.cos(t), (1 + a * np.cos(k * t)) * np.sin(t)]
+        for k, a in zip([2, 2, 3, 3, 4, 4], rng.uniform(0.1, 0.3, 6), strict=True)
+    ]
+    labels = np.array(["b", "b", "c", "c", "d", "d"])
+    cfg = MatchConfig(n_points=12, n_trees=1, mirror=False, phases=1, symmetrize="none")
+    perm = np.array([0, 2, 4, 1, 3, 5])
+    ordered = [curves[i] for i in perm]
+    splits = [np.array([1, 0, 1, 0, 0, 1], bool), np.array([0, 1, 0, 1, 1, 0], bool)]
+    from shapetree.retrieval._engine import _cache_key, _prep_models, _prep_targets
+
+    key = _cache_key(_prep_models(ordered, cfg, "m"), _prep_targets(ordered, cfg, "t"), cfg)
+    store = row_store.RowStore(tmp_path / "rows.json", key, {})
+    row_store.fill(store, ordered, cfg, tmp_path / "cache", perm, labels, splits, upto=4, block=2)
+    assert store.prefix(perm) == 4  # two blocks of two, the third not asked for
+    C = directed_costs(curves, None, cfg, progress=False).min(axis=0)
+    q = perm[:4]
+    np.testing.assert_array_equal(store.nn(q), row_store.split_nn(C[q], q, labels, splits))
+    np.testing.assert_array_equal(store.top(q), row_store.nearest_others(C[q], q))
+    # resumed from the file alone (no engine cache): only the missing block is computed
+    fresh = row_store.RowStore(tmp_path / "rows.json", key, {})
+    row_store.fill(
+        fresh, ordered, cfg, tmp_path / "other_cache", perm, labels, splits, upto=6, block=2
+    )
+    assert fresh.prefix(perm) == 6 and fresh.blocks == {(0, 2), (2, 4), (4, 6)}
+    np.testing.assert_array_equal(fresh.nn(perm), row_store.split_nn(C[perm], perm, labels, splits))
+    assert not any((tmp_path / "other_cache").glob("*/rows_000000_000002.blk"))
