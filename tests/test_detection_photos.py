@@ -183,7 +183,7 @@ def test_jsonl_file_resumes_and_stdout(photos: dict, tmp_path: Path, capsys) -> 
     assert code == 0
     (rec,) = [json.loads(line) for line in out.splitlines()]
     assert rec["image"] == str(imgs[0]) and len(rec["detections"]) == 1
-    assert "1 image(s): 1 detected" in err
+    assert "1 image(s): 1 searched now" in err and "1 with a detection" in err
 
 
 def test_cli_batch_exit_status_and_messages(photos: dict, tmp_path: Path, capsys) -> None:
@@ -192,11 +192,11 @@ def test_cli_batch_exit_status_and_messages(photos: dict, tmp_path: Path, capsys
     code = main([*args, "--no-progress", "--no-pictures"])
     stdout, err = capsys.readouterr()
     assert code == 1  # some images failed; the batch went on
-    assert "5 image(s): 2 detected, 0 already done, 3 failed" in stdout
+    assert "5 image(s): 2 searched now, 0 already done, 3 failed; 2 with a detection" in stdout
     assert err.count("shapetree: ") == 3 and "Traceback" not in err
     assert not list(out.glob("*.png"))
     code = main([*args, "--no-progress", "--no-pictures"])
-    assert code == 1 and "0 detected, 5 already done, 3 failed" in capsys.readouterr()[0]
+    assert code == 1 and "0 searched now, 5 already done, 3 failed" in capsys.readouterr()[0]
     # a model that cannot be read, or a picture name for many images: one line, status 2
     for bad in (
         ["detect", str(tmp_path / "missing.svg"), str(photos["imgs"])],
@@ -239,6 +239,18 @@ def test_single_picture_form_uses_the_own_edges(photos: dict, tmp_path: Path, ca
     doc = json.loads(rec.read_text())
     assert doc["edges"] == "own" and doc["params"]["edge_method"] == "own"
     assert box_iou(doc["detections"][0]["bbox"], photos["boxes"]["scene1.png"]) >= 0.5
+
+
+def test_cli_batch_says_when_an_image_has_no_detection(
+    photos: dict, tmp_path: Path, capsys
+) -> None:
+    blank = tmp_path / "white.png"
+    Image.new("L", (80, 60), 255).save(blank)  # no edge at all: nothing to find
+    args = ["detect", str(photos["model"]), str(blank), "-o", str(tmp_path / "o")]
+    code = main([*args, "--no-progress", "--no-pictures", "-k", "1"])
+    out = capsys.readouterr()[0]
+    assert code == 0 and "white.png: no detection" in out
+    assert "1 image(s): 1 searched now, 0 already done, 0 failed; 0 with a detection" in out
 
 
 def test_cli_collection_ranking(photos: dict, tmp_path: Path, capsys) -> None:

@@ -228,9 +228,10 @@ def cmd_detect(args: argparse.Namespace) -> int:
                 )
             else:
                 say(f"  {rec['image']}: no detection")
+    found = sum(1 for r in summary.records if r.get("status") == "ok" and r.get("detections"))
     say(
-        f"{len(images)} image(s): {summary.done} detected, {summary.skipped} already done, "
-        f"{summary.failed} failed ({summary.seconds:.1f} s)"
+        f"{len(images)} image(s): {summary.done} searched now, {summary.skipped} already "
+        f"done, {summary.failed} failed; {found} with a detection ({summary.seconds:.1f} s)"
     )
     if summary.ranking:
         n = len({d["image"] for d in summary.ranking})
