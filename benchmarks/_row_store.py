@@ -10,15 +10,12 @@ so a run resumes from the committed file on any machine.
 
 The file is tied to the engine's cache key of the whole problem (code fingerprint,
 options, the sampled curves in the run's order): a file made by other code, other options
-or another order is not read. Within a session, blocks the engine has already cached
-under that key are read instead of recomputed.
+or another order is not read.
 """
 
 from __future__ import annotations
 
 import json
-import threading
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
@@ -95,15 +92,13 @@ class RowStore:
                     f"(key {str(data.get('key'))[:12]}, now {key[:12]}): starting afresh",
                     flush=True,
                 )
-        self._lock = threading.Lock()
 
     def add(self, r0: int, r1: int, queries: np.ndarray, nn: np.ndarray, top: np.ndarray) -> None:
         """Record block ``[r0, r1)`` (the run's order) and write the file atomically."""
-        with self._lock:
-            for q, a, b in zip(queries.tolist(), nn.tolist(), top.tolist(), strict=True):
-                self.rows[int(q)] = {"nn": a, "top": b}
-            self.blocks.add((r0, r1))
-            self.save()
+        for q, a, b in zip(queries.tolist(), nn.tolist(), top.tolist(), strict=True):
+            self.rows[int(q)] = {"nn": a, "top": b}
+        self.blocks.add((r0, r1))
+        self.save()
 
     def save(self) -> None:
         data = dict(
@@ -146,74 +141,47 @@ def fill(
     workers: int = 2,
 ) -> None:
     """Record the rows of the first ``upto`` curves (in the run's order ``perm``; ``curves``
-    is the set in that order) that ``store`` lacks, block by block: read from the
-    engine's cache under the whole problem's key when there, else computed (``workers``
-    blocks at a time) and cached there too. Each finished block is written to the
-    store's file at once."""
+    is the set in that order) that ``store`` lacks. They are computed by
+    :func:`shapetree.retrieval.directed_costs`, ``workers`` blocks of ``block`` rows at a
+    time (cached in ``cache`` under that call's key, so a run killed on this machine
+    re-reads them); each block is written to the store's file as soon as its chunk is
+    done. The outer bar counts rows, the inner one the chunk's pairs."""
     from tqdm.auto import tqdm
 
-    from shapetree.retrieval._engine import (
-        _block_path,
-        _compute_block,
-        _prep_models,
-        _prep_targets,
-        read_block,
-        write_block,
-    )
+    from shapetree.retrieval import directed_costs
 
     n = len(curves)
-    ms = _prep_models(curves, cfg, "model curve")
-    tv = _prep_targets(curves, cfg, "target curve")
-    folder = Path(cache) / store.key[:32]
-    folder.mkdir(parents=True, exist_ok=True)
     inv = np.argsort(perm)
-
-    def meta(r0: int, r1: int) -> dict:
-        return {"key": store.key, "rows": [r0, r1], "shape": [cfg.n_pass, r1 - r0, n]}
-
-    def record(r0: int, r1: int, arr: np.ndarray) -> None:
-        rows = arr.min(axis=0)[:, inv]
-        queries = perm[r0:r1]
-        store.add(
-            r0, r1, queries, split_nn(rows, queries, labels, splits), nearest_others(rows, queries)
-        )
-
-    todo = []
-    for r0 in range(0, upto, block):
-        r1 = min(n, r0 + block)
-        if all(int(q) in store.rows for q in perm[r0:r1]):
-            continue
-        arr = read_block(_block_path(folder, r0, r1), meta(r0, r1))
-        if arr is None:
-            todo.append((r0, r1))
+    starts = [
+        r0
+        for r0 in range(0, upto, block)
+        if not all(int(q) in store.rows for q in perm[r0 : min(n, r0 + block)])
+    ]
+    chunks: list[list[int]] = []  # up to ``workers`` adjacent blocks, computed together
+    for r0 in starts:
+        if chunks and len(chunks[-1]) < workers and chunks[-1][-1] + block == r0:
+            chunks[-1].append(r0)
         else:
-            record(r0, r1, arr)
-    if not todo:
+            chunks.append([r0])
+    if not starts:
         return
-    total = sum(r1 - r0 for r0, r1 in todo) * n
-    bar = tqdm(total=total, desc="matching (rows to the store)", unit="pair", smoothing=0.05)
-    lock = threading.Lock()
-
-    def tick(k: int) -> None:
-        with lock:
-            bar.update(k)
-
-    def job(r0: int, r1: int) -> None:
-        arr = _compute_block(ms[r0:r1], tv, cfg, tick)
-        write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
-        record(r0, r1, arr)
-
-    try:
-        with ThreadPoolExecutor(max_workers=workers) as ex:
-            pending = {ex.submit(job, r0, r1) for r0, r1 in todo}
-            try:
-                while pending:
-                    finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    for f in finished:
-                        f.result()
-            except BaseException:
-                for f in pending:
-                    f.cancel()
-                raise
-    finally:
-        bar.close()
+    todo = sum(min(n, r0 + block) - r0 for r0 in starts)
+    with tqdm(total=todo, desc="rows to the store", unit="row", smoothing=0.1) as bar:
+        for chunk in chunks:
+            c0, c1 = chunk[0], min(n, chunk[-1] + block)
+            arr = directed_costs(
+                curves[c0:c1],
+                curves,
+                cfg,
+                workers=workers,
+                cache_dir=cache,
+                block=block,
+                desc=f"rows {c0}-{c1}",
+            )
+            rows = arr.min(axis=0)[:, inv]
+            for r0 in chunk:
+                r1 = min(n, r0 + block)
+                part, queries = rows[r0 - c0 : r1 - c0], perm[r0:r1]
+                nn = split_nn(part, queries, labels, splits)
+                store.add(r0, r1, queries, nn, nearest_others(part, queries))
+            bar.update(c1 - c0)

@@ -248,11 +248,9 @@ def verdict(name: str, value: Any) -> dict[str, Any]:
     }
 
 
-def _cached_rows(
-    cache: Path, cfg: MatchConfig, curves: list, block: int = MPEG7_BLOCK
-) -> np.ndarray | None:
-    """The finished leading row blocks of a full run (MPEG-7's, or Swedish leaf's with
-    ``block=SWEDISH_BLOCK``) over ``curves`` in this order, or ``None``. The folder and every
+def _cached_rows(cache: Path, cfg: MatchConfig, curves: list) -> np.ndarray | None:
+    """The finished leading row blocks (``MPEG7_BLOCK`` rows each) of a full MPEG-7 run over
+    ``curves`` in this order, or ``None``. The folder and every
     block are found by the engine's own cache key (code fingerprint, options and the sampled
     curves in order), so the rows of a run with another query order (``--mpeg7-every``) or
     other code are never read."""
@@ -263,8 +261,8 @@ def _cached_rows(
     folder = cache / key[:32]
     n = len(curves)
     parts = []
-    for r0 in range(0, n, block):
-        r1 = min(n, r0 + block)
+    for r0 in range(0, n, MPEG7_BLOCK):
+        r1 = min(n, r0 + MPEG7_BLOCK)
         meta = {"key": key, "rows": [r0, r1], "shape": [cfg.n_pass, r1 - r0, n]}
         arr = read_block(folder / f"rows_{r0:06d}_{r1:06d}.blk", meta)
         if arr is None:
