@@ -47,6 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import own_edge_weights as W  # noqa: E402
 from _common import RESULTS, machine, write_json  # noqa: E402
 
+from shapetree.detection import _boundary as B  # noqa: E402
 from shapetree.detection import load_edges  # noqa: E402
 from shapetree.detection._ethz_eval import ethz_root  # noqa: E402
 
@@ -54,18 +55,18 @@ THRESHOLDS = (0.15, 0.3)
 
 
 def weights(totals: dict[str, float], scales: dict[str, tuple[float, ...]] | None = None):
-    """A per-key weight vector: each cue's total split evenly over its scales (default:
-    the shipped ones, 2 and 4 px; texture 8 and 16 px)."""
+    """A per-key weight vector: each cue's total split evenly over its scales (default: the
+    module's, ``SCALES`` and ``TEXTURE_SCALES``)."""
     scales = scales or {}
     w = np.zeros(len(W.KEYS))
     for cue, total in totals.items():
-        sc = scales.get(cue, (8.0, 16.0) if cue == "texture" else (2.0, 4.0))
+        sc = scales.get(cue, B.TEXTURE_SCALES if cue == "texture" else B.SCALES)
         for s in sc:
             w[W.KEYS.index((cue, s))] = total / len(sc)
     return w
 
 
-SHIPPED = {"L": 0.4, "a": 0.15, "b": 0.15, "texture": 0.3}
+SHIPPED = dict(B.WEIGHTS)
 COARSE = {"a": (4.0, 8.0), "b": (4.0, 8.0)}
 VARIANTS = {
     "shipped": weights(SHIPPED),
