@@ -20,7 +20,12 @@ that the change of scale is the only change: the energies of both rules on these
 images are matched at the four shares (step 2 for each rule), a line ``E_old ≈ α + β
 E_new`` is fitted through the four pairs, and the new constants are those that map
 ``E_new`` to the shipped ``p`` of ``E_old``: ``E_OFFSET = (0.155 - α) / β``,
-``E_RANGE = 0.61 / β``. The JSON holds both rules' own fits too. Run::
+``E_RANGE = 0.61 / β``. The JSON holds both rules' own fits too.
+
+When the colour cues moved from 2 and 4 px to ``COLOUR_SCALES`` (4 and 8 px), the
+constants were carried over once more the same way, from the work-side map with the
+earlier colour scales (whose constants are the first step's result) to the map with the
+new ones: ``carried_over_colour``. The module ships that second result. Run::
 
     SHAPETREE_DATA=/work/shared/datasets python3 benchmarks/own_edge_calibration.py
 
@@ -59,16 +64,39 @@ def fit(energies: list[np.ndarray], pbs: list[np.ndarray]) -> dict:
 
 
 OLD_OFFSET, OLD_RANGE = 0.155, 0.61
+#: The colour cues' scales before they moved to ``B.COLOUR_SCALES``.
+EARLIER_COLOUR_SCALES = (2.0, 4.0)
 
 
 def _energies(root: Path, names: list[tuple[str, str]], rule: str) -> list[np.ndarray]:
-    scale = B.working_scale
-    if rule == "downscale-only":
+    """Thinned energies under a scale rule ("downscale-only", "work-side") and colour
+    scales ("earlier colour": ``EARLIER_COLOUR_SCALES``; otherwise the module's)."""
+    scale, colour = B.working_scale, B.COLOUR_SCALES
+    if rule.startswith("downscale-only"):
         B.working_scale = lambda h, w: min(1.0, 640 / max(h, w))
+    if rule.endswith("earlier colour"):
+        B.COLOUR_SCALES = EARLIER_COLOUR_SCALES
     try:
         return [B.thinned_energy(_as_channels(load_image(root / c / f"{s}.jpg"))) for c, s in names]
     finally:
-        B.working_scale = scale
+        B.working_scale, B.COLOUR_SCALES = scale, colour
+
+
+def carry(fits: dict, old: str, new: str, offset: float, range_: float) -> dict:
+    """Constants that give rule ``new``'s energies the ``p`` that ``offset`` / ``range_``
+    give rule ``old``'s: a line ``E_old = alpha + beta E_new`` through the matched
+    energies."""
+    e_old = np.array(fits[old]["own_energy_at_share"])
+    e_new = np.array(fits[new]["own_energy_at_share"])
+    beta, alpha = np.polyfit(e_new, e_old, 1)
+    return {
+        "from": old,
+        "to": new,
+        "e_offset": round(float((offset - alpha) / beta), 4),
+        "e_range": round(float(range_ / beta), 4),
+        "alpha": round(float(alpha), 4),
+        "beta": round(float(beta), 4),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -80,17 +108,10 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     names = images(root, per_class=4)
     pbs = [load_edges(root / c / f"{s}_edges.tif") for c, s in names]
-    rules = ("downscale-only", "work-side")
+    rules = ("downscale-only, earlier colour", "work-side, earlier colour", "work-side")
     fits = {rule: fit(_energies(root, names, rule), pbs) for rule in rules}
-    e_old = np.array(fits["downscale-only"]["own_energy_at_share"])
-    e_new = np.array(fits["work-side"]["own_energy_at_share"])
-    beta, alpha = np.polyfit(e_new, e_old, 1)
-    carried = {
-        "e_offset": round(float((OLD_OFFSET - alpha) / beta), 4),
-        "e_range": round(float(OLD_RANGE / beta), 4),
-        "alpha": round(float(alpha), 4),
-        "beta": round(float(beta), 4),
-    }
+    carried = carry(fits, rules[0], rules[1], OLD_OFFSET, OLD_RANGE)
+    colour = carry(fits, rules[1], rules[2], carried["e_offset"], carried["e_range"])
     out = {
         "command": "python3 benchmarks/own_edge_calibration.py " + " ".join(argv or sys.argv[1:]),
         "work_side": B.WORK_SIDE,
@@ -98,6 +119,8 @@ def main(argv: list[str] | None = None) -> int:
         "thresholds": list(CAL_THRESHOLDS),
         "fits": fits,
         "carried_over": carried,
+        "colour_scales": {"earlier": list(EARLIER_COLOUR_SCALES), "now": list(B.COLOUR_SCALES)},
+        "carried_over_colour": colour,
         "earlier_constants": {"e_offset": OLD_OFFSET, "e_range": OLD_RANGE},
         "module_now": {"e_offset": B.E_OFFSET, "e_range": B.E_RANGE},
         "seconds": round(time.perf_counter() - t0, 1),
@@ -106,10 +129,12 @@ def main(argv: list[str] | None = None) -> int:
     write_json(Path(args.json), out)
     for rule, r in fits.items():
         print(f"fit, {rule:15s}: E_OFFSET {r['e_offset']:.4f}  E_RANGE {r['e_range']:.4f}")
-    print(
-        f"carried over to work-side: E_OFFSET {carried['e_offset']:.4f}  "
-        f"E_RANGE {carried['e_range']:.4f}  (module now {B.E_OFFSET} / {B.E_RANGE})"
-    )
+    for c in (carried, colour):
+        print(
+            f"carried over from {c['from']} to {c['to']}: E_OFFSET {c['e_offset']:.4f}  "
+            f"E_RANGE {c['e_range']:.4f}"
+        )
+    print(f"module now {B.E_OFFSET} / {B.E_RANGE}")
     print(f"json: {args.json}")
     return 0
 
