@@ -742,11 +742,14 @@ def detect_detailed(
     ids, costs = complete_matches(res)
     kept: list[Detection] = []
     kept_boxes = np.zeros((0, 4))
-    for e_id, c in zip(ids, costs, strict=True):
-        box = res.box[e_id]
-        if max(box[2] - box[0], box[3] - box[1]) < p.min_size:
-            continue
-        if len(kept) and np.any(_box_iou(box, kept_boxes) > p.nms_iou):
+    # the contour boxes of all complete matches, screened at once: too small, or
+    # overlapping a kept detection (the IoU is symmetric, so each kept box updates the
+    # screen of every candidate in one call)
+    cand_boxes = res.box[ids]
+    wide = cand_boxes[:, 2:] - cand_boxes[:, :2]
+    screened = np.maximum(wide[:, 0], wide[:, 1]) < p.min_size
+    for t, (e_id, c) in enumerate(zip(ids, costs, strict=True)):
+        if screened[t]:
             continue
         det = _reconstruct(res, int(e_id), float(c), mdl, dense, base)
         if det.coverage < p.min_coverage:
@@ -760,6 +763,7 @@ def detect_detailed(
         kept_boxes = np.vstack([kept_boxes, b])
         if len(kept) >= k:
             break
+        screened |= _box_iou(b, cand_boxes) > p.nms_iou
     kept = [_ranking_score(d, e.shape if e.size else None, p) for d in kept]
     if kept and e.size:
         fields = template_fields(e, p.threshold)

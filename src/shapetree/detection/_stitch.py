@@ -162,6 +162,11 @@ def _stitch_kernel(
     n_e = 0
     beams = -np.ones((m, m + 1, beam), np.int64)
     nbeam = np.zeros((m, m + 1), np.int64)
+    # the kept matches' cost and endpoints beside their ids, in beam order, so that the
+    # composition loops read contiguous memory
+    bcost = np.empty((m, m + 1, beam))
+    bp = np.empty((m, m + 1, beam), np.int64)
+    bq = np.empty((m, m + 1, beam), np.int64)
 
     bufcap = 4 * beam
     buf_cost = np.empty(bufcap)
@@ -197,24 +202,28 @@ def _stitch_kernel(
                 nr = nbeam[b, L - l]
                 if nl == 0 or nr == 0:
                     continue
-                cr0 = e_cost[beams[b, L - l, 0]]
+                rcost = bcost[b, L - l]
+                rp = bp[b, L - l]
+                cr0 = rcost[0]
                 for ii in range(nl):
-                    i = beams[a, l, ii]
-                    ci = e_cost[i]
+                    ci = bcost[a, l, ii]
                     if n_used == bufcap and ci + cr0 >= buf_cost[worst]:
                         break  # beams are sorted by cost
-                    qi = e_q[i]
+                    i = beams[a, l, ii]
+                    qi = bq[a, l, ii]
+                    near_q = near[qi]
                     for jj in range(nr):
-                        j = beams[b, L - l, jj]
-                        c = ci + e_cost[j]
+                        c = ci + rcost[jj]
                         if n_used == bufcap and c >= buf_cost[worst]:
                             break
-                        if not near[qi, e_p[j]]:
+                        pj = rp[jj]
+                        if not near_q[pj]:
                             continue
+                        j = beams[b, L - l, jj]
                         if (e_mask[i, 0] & e_mask[j, 0]) != 0 or (e_mask[i, 1] & e_mask[j, 1]) != 0:
                             continue
                         if L < m:
-                            mid = 0.5 * (E[qi] + E[e_p[j]])
+                            mid = 0.5 * (E[qi] + E[pj])
                             c += lamf * _difn(wsh, E[e_p[i]], mid, E[e_q[j]], hyper)
                         elif not near[e_q[j], e_p[i]]:
                             continue
@@ -242,32 +251,52 @@ def _stitch_kernel(
                     ysh = _shape(M[a], M[b], M[c_end])
                     if nl == 0 or nr == 0:
                         continue
-                    cr0 = e_cost[beams[b2, lr, 0]]
+                    rcost = bcost[b2, lr]
+                    rp = bp[b2, lr]
+                    rq = bq[b2, lr]
+                    cr0 = rcost[0]
                     for ii in range(nl):
-                        i = beams[a, l1, ii]
-                        ci = e_cost[i] + gcost
+                        ci = bcost[a, l1, ii] + gcost
                         if n_used == bufcap and ci + cr0 >= buf_cost[worst]:
                             break  # beams are sorted by cost
-                        pi = E[e_p[i]]
-                        qi = E[e_q[i]]
+                        i = beams[a, l1, ii]
+                        mi0 = e_mask[i, 0]
+                        mi1 = e_mask[i, 1]
+                        pi = E[bp[a, l1, ii]]
+                        qi = E[bq[a, l1, ii]]
                         for jj in range(nr):
-                            j = beams[b2, lr, jj]
-                            c = ci + e_cost[j]
+                            c = ci + rcost[jj]
                             if n_used == bufcap and c >= buf_cost[worst]:
                                 break
-                            if (e_mask[i, 0] & e_mask[j, 0]) != 0 or (
-                                e_mask[i, 1] & e_mask[j, 1]
-                            ) != 0:
+                            j = beams[b2, lr, jj]
+                            if (mi0 & e_mask[j, 0]) != 0 or (mi1 & e_mask[j, 1]) != 0:
                                 continue
-                            rj = E[e_p[j]]
-                            sj = E[e_q[j]]
+                            rj = E[rp[jj]]
+                            sj = E[rq[jj]]
                             if L < m:
-                                t1 = fr1 * _difn(ush, pi, qi, rj, hyper) + lamf * _difn(
-                                    vsh, pi, rj, sj, hyper
-                                )
-                                t2 = fr2 * _difn(xsh, qi, rj, sj, hyper) + lamf * _difn(
-                                    ysh, pi, qi, sj, hyper
-                                )
+                                # Each bracketing costs the sum of two non-negative
+                                # triangle terms.  Once the heap is full, a bracketing one
+                                # of whose terms alone brings c to the heap's worst cost is
+                                # out (floating addition is monotone): the other bracketing
+                                # decides, and with both out _insert would refuse the
+                                # candidate, so it is skipped.  The same candidates reach
+                                # _insert with the same costs as with all four terms.
+                                full = n_used == bufcap
+                                wc = buf_cost[worst] if full else INF
+                                tv = lamf * _difn(vsh, pi, rj, sj, hyper)
+                                t1 = INF
+                                if c + tv < wc:
+                                    t1 = fr1 * _difn(ush, pi, qi, rj, hyper) + tv
+                                    if c + t1 >= wc:
+                                        t1 = INF
+                                ty = lamf * _difn(ysh, pi, qi, sj, hyper)
+                                t2 = INF
+                                if c + ty < wc:
+                                    t2 = fr2 * _difn(xsh, qi, rj, sj, hyper) + ty
+                                    if c + t2 >= wc:
+                                        t2 = INF
+                                if t1 == INF and t2 == INF:
+                                    continue
                             else:
                                 if not near[e_q[j], e_p[i]]:
                                     continue
@@ -319,6 +348,9 @@ def _stitch_kernel(
                     e_box[e, 2] = max(e_box[i, 2], e_box[j, 2])
                     e_box[e, 3] = max(e_box[i, 3], e_box[j, 3])
                 beams[a, L, kept] = e
+                bcost[a, L, kept] = buf_cost[t]
+                bp[a, L, kept] = p
+                bq[a, L, kept] = q
                 kept += 1
                 if kept == beam:
                     break
