@@ -253,3 +253,69 @@ def test_border_margin_ignores_the_picture_frame() -> None:
     ):
         with pytest.raises(ShapeTreeError, match=next(iter(bad))):
             detect_detailed(square, None, edges=frame, k=2, **bad)
+
+
+def _stitch_inputs(monkeypatch: pytest.MonkeyPatch, seed: int, m: int) -> tuple[tuple, dict]:
+    """The arguments ``detect`` passes to the stitching DP on a synthetic scene."""
+    from shapetree.detection import _detect
+
+    got: list[tuple[tuple, dict]] = []
+    real = _detect.run_stitch
+
+    def spy(*args, **kw):
+        got.append((args, kw))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(_detect, "run_stitch", spy)
+    conts, _ = _scene(seed, removed=[(1.0, 1.6), (3.5, 4.2)], n_clutter=14)
+    detect(make_model(_shape(MODEL_T), m=m), None, contours=conts, k=3, beam=8, gap_beam=4)
+    return got[0]
+
+
+@pytest.mark.parametrize(("seed", "m", "dif"), [(0, 12, "procrustes"), (1, 10, "hyperbolic")])
+def test_stitch_kernel_agrees_with_reference(
+    monkeypatch: pytest.MonkeyPatch, seed: int, m: int, dif: str
+) -> None:
+    """The pruned kernel keeps exactly the matches of the literal oracle, which lists
+    every candidate of every model interval with all its triangle terms (the kernel
+    skips candidates early and computes the gap terms lazily)."""
+    from shapetree.detection._stitch import run_stitch
+    from shapetree.detection._stitch_reference import reference_stitch
+
+    args, kw = _stitch_inputs(monkeypatch, seed, m)
+    kw = {**kw, "dif": dif}
+    model, gw, base, piece_p, piece_q, piece_contour, piece_box, ends = args
+    # piece costs of short intervals tie (the table of a one-segment match is 0), and
+    # which of tied candidates is kept is arbitrary in both: break the ties
+    base = base + np.random.default_rng(seed).uniform(0, 1e-6, base.shape)
+    args = (model, gw, base, piece_p, piece_q, piece_contour, piece_box, ends)
+    assert len(set(piece_contour.tolist())) < 128  # the kernel's contour hash is exact
+    res = run_stitch(*args, **kw)
+    ref = reference_stitch(
+        model[:, 0] + 1j * model[:, 1],
+        res.frac,
+        res.gapc,
+        base,
+        piece_p,
+        piece_q,
+        piece_contour,
+        piece_box,
+        ends[:, 0] + 1j * ends[:, 1],
+        res.near,
+        kw["lam"],
+        kw["beam"],
+        kw["per_end"],
+        kw["max_gap"],
+        kw["gap_beam"],
+        dif,
+    )
+    # every kind of composition is exercised, and many intervals had more candidates
+    # than the kernel's heap holds (4 beam), so the early skips were taken
+    kinds = np.bincount(res.kind, minlength=3)
+    assert np.all(kinds > 20), kinds
+    assert np.mean(np.bincount(res.a * (m + 1) + res.L) == kw["beam"]) > 0.5
+    assert len(ref) == len(res.cost)
+    for name in ("a", "L", "p", "q", "kind", "left", "right", "gap"):
+        np.testing.assert_array_equal(getattr(res, name), [e[name] for e in ref], err_msg=name)
+    np.testing.assert_allclose(res.cost, [e["cost"] for e in ref], rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(res.box, [e["box"] for e in ref])
