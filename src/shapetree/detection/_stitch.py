@@ -44,6 +44,13 @@ Pruning (the exact DP is ``O(m^3 k^3)``):
   on each side;
 * a contour may be used only once per match (a 128-bit hash of contour ids
   per match; rare hash collisions forbid a valid combination).
+
+Exact shortcuts (the kept matches are those of listing every candidate with all its
+terms, the literal oracle :func:`._stitch_reference.reference_stitch`): beams are sorted,
+so a loop over a beam stops at the first candidate whose cost before triangle terms
+already reaches the full heap's worst; across a gap, the triangle terms are computed
+one at a time and a bracketing stops being evaluated once one of its terms alone
+reaches that worst cost.
 """
 
 from __future__ import annotations
