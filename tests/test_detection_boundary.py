@@ -174,3 +174,37 @@ def test_method_validation_and_detect_params() -> None:
         DetectParams(edge_method="sobel")
     assert DetectParams().edge_method == "own"
     assert np.all(edge_map(np.full((20, 30), 0.5), method="own") == 0)
+
+
+@pytest.mark.parametrize("f", [2, 4, 8, 16])
+def test_block_means_and_upsampling_agree_with_numpy_and_scipy(f: int) -> None:
+    """The coarse-grid helpers give the values of the plain forms they replace: the block
+    mean of the edge-padded bin images, and ``map_coordinates`` (order 1, nearest) at the
+    output pixel centres (both were bit-identical when written; checked here to float32
+    rounding)."""
+    from shapetree.detection._boundary import _pool, _up
+
+    rng = np.random.default_rng(f)
+    ind = rng.random((3, 61, 47)).astype(np.float32)
+    n, h, w = ind.shape
+    hh, ww = -(-h // f) * f, -(-w // f) * f
+    pad = np.pad(ind, ((0, 0), (0, hh - h), (0, ww - w)), mode="edge")
+    want = pad.reshape(n, hh // f, f, ww // f, f).mean(axis=(2, 4))
+    got = _pool(ind, f)
+    assert got.dtype == np.float32 and got.shape == want.shape
+    np.testing.assert_allclose(got, want, rtol=2e-6, atol=1e-7)
+    coarse = got[0]
+    rows = (np.arange(h) + 0.5) / f - 0.5
+    cols = (np.arange(w) + 0.5) / f - 0.5
+    rr, cc = np.meshgrid(rows, cols, indexing="ij")
+    want_up = ndimage.map_coordinates(coarse, [rr, cc], order=1, mode="nearest")
+    got_up = _up(coarse, f, (h, w))
+    assert got_up.dtype == np.float32 and got_up.shape == (h, w)
+    np.testing.assert_allclose(got_up, want_up, rtol=2e-6, atol=1e-7)
+    # a linear ramp is reproduced inside, and the border is clamped
+    ramp = np.add.outer(np.arange(8.0), 2 * np.arange(6.0))
+    up = _up(ramp, f, (8 * f, 6 * f))
+    c = (np.arange(8 * f) + 0.5) / f - 0.5
+    d = (np.arange(6 * f) + 0.5) / f - 0.5
+    exact = np.add.outer(np.clip(c, 0, 7), 2 * np.clip(d, 0, 5))
+    np.testing.assert_allclose(up, exact, atol=1e-12)

@@ -43,6 +43,7 @@ KERNEL_MODULES = (
     "matching/_subcurves.py",
     "detection/_stitch.py",
     "detection/_template.py",
+    "detection/_boundary.py",
 )
 
 

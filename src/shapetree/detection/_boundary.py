@@ -76,9 +76,14 @@ from __future__ import annotations
 
 import warnings
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
+
+from shapetree._numba_cache import install as _install_cache_locators
+
+_install_cache_locators()  # before the first njit (see shapetree._numba_cache)
 
 __all__ = [
     "boundary_map",
@@ -227,23 +232,73 @@ def _forms(ind: NDArray[np.float32], sigma: float) -> tuple[NDArray, NDArray, ND
 
 
 def _pool(ind: NDArray[np.float32], f: int) -> NDArray[np.float32]:
-    """Block means ``f x f`` of bin images (the histograms at a coarser grid)."""
+    """Block means ``f x f`` of bin images (the histograms at a coarser grid; the image is
+    padded by its edge values to whole blocks).
+
+    The sums run over strided views: each row of a block first (its ``f`` values in
+    sequence, or for ``f = 8`` pairwise in the order of NumPy's 8-way unrolled sum), then
+    the rows in sequence, then a division by ``f²``. That is the order of NumPy's
+    ``mean(axis=(2, 4))`` of the blocked array, which this replaces (the same float32
+    values, bit for bit with NumPy 2.4, at a fifth of the time); other ``f`` use that
+    ``mean``.
+    """
     if f == 1:
         return ind
     n, h, w = ind.shape
     hh, ww = -(-h // f) * f, -(-w // f) * f
     pad = np.pad(ind, ((0, 0), (0, hh - h), (0, ww - w)), mode="edge")
-    return pad.reshape(n, hh // f, f, ww // f, f).mean(axis=(2, 4))
+    if f not in (2, 4, 8):
+        return pad.reshape(n, hh // f, f, ww // f, f).mean(axis=(2, 4))
+    acc = None
+    for i in range(f):
+        xs = [pad[:, i::f, j::f] for j in range(f)]
+        if f == 8:
+            row = ((xs[0] + xs[1]) + (xs[2] + xs[3])) + ((xs[4] + xs[5]) + (xs[6] + xs[7]))
+        else:
+            row = xs[0] + xs[1]
+            for x in xs[2:]:
+                row += x
+        if acc is None:
+            acc = row
+        else:
+            acc += row
+    return acc / np.float32(f * f)
+
+
+def _up_axis(n_out: int, f: int, n_in: int) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Bilinear weights along one axis: output pixel centres ``(i + 0.5) / f - 0.5`` in
+    input pixels, clamped to the input (``mode="nearest"``); the lower and upper input
+    index and their weights."""
+    x = np.clip((np.arange(n_out) + 0.5) / f - 0.5, 0.0, n_in - 1.0)
+    i0 = np.minimum(np.floor(x).astype(np.int64), n_in - 1)
+    t = x - i0
+    return i0, np.minimum(i0 + 1, n_in - 1), 1.0 - t, t
+
+
+@numba.njit(cache=True, nogil=True)
+def _up_kernel(x, r0, r1, wr0, wr1, c0, c1, wc0, wc1, out):
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            t = (np.float64(x[r0[i], c0[j]]) * wr0[i]) * wc0[j]
+            t += (np.float64(x[r0[i], c1[j]]) * wr0[i]) * wc1[j]
+            t += (np.float64(x[r1[i], c0[j]]) * wr1[i]) * wc0[j]
+            t += (np.float64(x[r1[i], c1[j]]) * wr1[i]) * wc1[j]
+            out[i, j] = t
 
 
 def _up(x: NDArray, f: int, shape: tuple[int, int]) -> NDArray:
-    """Bilinear upsampling by ``f`` of a coarse-grid map to ``shape`` (pixel centres)."""
+    """Bilinear upsampling by ``f`` of a coarse-grid map to ``shape`` (pixel centres).
+
+    The values of ``scipy.ndimage.map_coordinates(x, grid, order=1, mode="nearest")`` at
+    the output pixel centres (the four corner terms summed in double precision in its
+    order, then cast to ``x``'s dtype; bit for bit with SciPy 1.17), computed on the
+    separable grid without the per-point coordinate arrays.
+    """
     if f == 1:
         return x
-    rows = (np.arange(shape[0]) + 0.5) / f - 0.5
-    cols = (np.arange(shape[1]) + 0.5) / f - 0.5
-    rr, cc = np.meshgrid(rows, cols, indexing="ij")
-    return ndimage.map_coordinates(x, [rr, cc], order=1, mode="nearest")
+    out = np.empty(shape, x.dtype)
+    _up_kernel(x, *_up_axis(shape[0], f, x.shape[0]), *_up_axis(shape[1], f, x.shape[1]), out)
+    return out
 
 
 def _cue_forms(ind: NDArray[np.float32], scales: tuple[float, ...]):
