@@ -89,6 +89,17 @@ def _difn(
 
 
 @nb.njit(cache=True)
+def _bracketing(c, wc, t_whole, fr, sh, z1, z2, z3, hyper):
+    """One bracketing of a composition across a gap: ``fr dif(sh, (z1, z2, z3)) +
+    t_whole`` (its own triangle term plus the whole interval's, given), or ``INF`` as soon
+    as either term brings ``c`` to ``wc`` (then it cannot be kept)."""
+    if c + t_whole >= wc:
+        return INF
+    t = fr * _difn(sh, z1, z2, z3, hyper) + t_whole
+    return INF if c + t >= wc else t
+
+
+@nb.njit(cache=True)
 def _insert(buf_cost, buf_info, n_used, worst, cost, info):
     """Insert a candidate into a bounded max-heap that keeps the cheapest entries.
 
@@ -288,20 +299,11 @@ def _stitch_kernel(
                                 # decides, and with both out _insert would refuse the
                                 # candidate, so it is skipped.  The same candidates reach
                                 # _insert with the same costs as with all four terms.
-                                full = n_used == bufcap
-                                wc = buf_cost[worst] if full else INF
+                                wc = buf_cost[worst] if n_used == bufcap else INF
                                 tv = lamf * _difn(vsh, pi, rj, sj, hyper)
-                                t1 = INF
-                                if c + tv < wc:
-                                    t1 = fr1 * _difn(ush, pi, qi, rj, hyper) + tv
-                                    if c + t1 >= wc:
-                                        t1 = INF
+                                t1 = _bracketing(c, wc, tv, fr1, ush, pi, qi, rj, hyper)
                                 ty = lamf * _difn(ysh, pi, qi, sj, hyper)
-                                t2 = INF
-                                if c + ty < wc:
-                                    t2 = fr2 * _difn(xsh, qi, rj, sj, hyper) + ty
-                                    if c + t2 >= wc:
-                                        t2 = INF
+                                t2 = _bracketing(c, wc, ty, fr2, xsh, qi, rj, sj, hyper)
                                 if t1 == INF and t2 == INF:
                                     continue
                             else:
