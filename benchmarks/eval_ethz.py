@@ -39,7 +39,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import machine  # noqa: E402
+from _common import REFERENCE_WORKLOAD, machine, reference_ms  # noqa: E402
 
 from shapetree.cli._evaluate import key_value  # noqa: E402
 from shapetree.detection import DetectParams, evaluate_ethz  # noqa: E402
@@ -107,6 +107,7 @@ def main() -> None:
         args.json = str(results / name[args.edges])
     if args.out_dir is None and args.edges == "pb":
         args.out_dir = str(results)
+    ref_start = reference_ms()
     res = evaluate_ethz(
         args.data,
         json_path=None,
@@ -121,6 +122,21 @@ def main() -> None:
     )
     if args.edges == "pidinet":
         res["edge_weights_note"] = PIDINET_NOTE
+    ref_ms = [round(ref_start, 3), round(reference_ms(), 3)]
+    unit = sum(ref_ms) / 2e3  # seconds
+    res["speed_reference"] = {
+        "workload": REFERENCE_WORKLOAD,
+        "ms_before_and_after": ref_ms,
+        "seconds_per_image_median_in_units": round(res["seconds_per_image_median"] / unit, 1),
+        **(
+            {"edge_map_seconds_median_in_units": round(res["edge_map_seconds_median"] / unit, 1)}
+            if "edge_map_seconds_median" in res
+            else {}
+        ),
+        "note": "the reference workload timed in the main process just before and just after "
+        "the protocol (no worker running); the medians divided by the mean of the two: "
+        "comparable between machines and days, where the seconds are not",
+    }
     res["machine"] = machine()
     res["command"] = "python3 benchmarks/eval_ethz.py " + " ".join(sys.argv[1:])
     from shapetree._atomic import atomic_write_bytes
@@ -135,6 +151,10 @@ def main() -> None:
         f"seconds/image median {med:.3f} p90 {p90:.3f}",
         "breakdown (median s):",
         json.dumps(res["seconds_breakdown_median"]),
+    )
+    print(
+        f"reference workload {ref_ms} ms (before, after); median per image "
+        f"{res['speed_reference']['seconds_per_image_median_in_units']} reference calls"
     )
     if "edge_map_seconds_median" in res:
         print(
