@@ -28,7 +28,9 @@ import hashlib
 import json
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -531,121 +533,55 @@ def evaluate_ethz(
         pidinet, ``edge_weights`` (file name, SHA-256, variant); ``ranked_by``
         (``"collection_score"`` or ``"score"``).
     """
-    if edges not in EDGE_SOURCES:
-        raise ShapeTreeError(f"unknown edge source {edges!r}; choose one of {EDGE_SOURCES}")
-    weights_sha: str | None = None
-    weights_info: dict[str, Any] | None = None
-    if edges == "pidinet":
-        from ._pidinet import load_pidinet
-
-        net = load_pidinet(edge_weights)  # a clear ShapeTreeError for missing / bad weights
-        weights_sha = net.sha256
-        weights_info = {"file": net.path.name, "sha256": net.sha256, "variant": net.variant}
-        edge_weights = str(net.path)
-    elif edge_weights is not None:
-        raise ShapeTreeError(f"edge_weights is for edges='pidinet', not {edges!r}")
+    source = _EdgeSource.resolve(edges, edge_weights)
     root = ethz_root(data_dir)
     params = params or DetectParams()
-    cls_list = list(classes) if classes else list(ETHZ_CLASSES)
-    for c in cls_list:
-        if c not in ETHZ_CLASSES:
-            raise DatasetError(f"unknown ETHZ class {c!r}; known: {sorted(ETHZ_CLASSES)}")
+    cls_list = _class_list(classes)
     imgs = list(images) if images is not None else _images(root)
     base = Path(cache_dir).expanduser() if cache_dir else default_cache_dir()
-    cache = base / _params_key(
-        params, k, edges if weights_sha is None else f"{edges}:{weights_sha}"
-    )
-    pdict = params.as_dict()
+    cache = base / _params_key(params, k, source.key)
     edge_dir: Path | None = None
-    edge_tasks = []
+    raw_dir: Path | None = None
     if edges in COMPUTED_EDGES:
-        edge_dir, raw_dir = edge_cache_dirs(base, edges, weights_sha)
-        w_s = None if edge_weights is None else str(edge_weights)
-        r_s = None if raw_dir is None else str(raw_dir)
-        edge_tasks = [(str(root), f, s, edges, w_s, str(edge_dir), r_s) for f, s in imgs]
-    tasks = [
-        (
-            str(root),
-            c,
-            f,
-            s,
-            str(cache),
-            pdict,
-            k,
-            edges,
-            None if edge_dir is None else str(edge_dir),
-        )
-        for c in cls_list
-        for f, s in imgs
-    ]
-    results: dict[tuple[str, str, str], dict] = {}
-    edge_secs: dict[str, float] = {}
+        edge_dir, raw_dir = edge_cache_dirs(base, edges, source.sha)
     # the collection stage: it needs another image to compare with
     collection = params.collection_stage and len(imgs) > 1
-    hists: dict[str, dict[str, list]] = {}
-    shapes: dict[str, tuple[int, int]] = {}
-    app_secs: dict[str, float] = {}
-    from tqdm import tqdm
-
-    def _run(pool: Any) -> None:
-        def imap(fn, items):
-            return map(fn, items) if pool is None else pool.imap_unordered(fn, items, chunksize=1)
-
-        if edge_tasks:
-            with tqdm(
-                total=len(edge_tasks), disable=not progress, desc=f"ETHZ {edges} edges", unit="img"
-            ) as ebar:
-                for key, sec in imap(_edge_one, edge_tasks):
-                    edge_secs[key] = sec
-                    ebar.update()
-        with tqdm(total=len(tasks), disable=not progress, desc="ETHZ detect", unit="img") as bar:
-            for c, f, s, doc in imap(_run_one, tasks):
-                results[(c, f, s)] = doc
-                bar.update()
+    pdict = params.as_dict()
+    looks: list[tuple[str, dict, tuple[int, int], float]] = []
+    with _mapper(workers) as imap:
+        edge_secs = dict(
+            _tracked(
+                imap,
+                _edge_one,
+                source.edge_tasks(root, imgs, edge_dir, raw_dir),
+                f"ETHZ {edges} edges",
+                progress,
+            )
+        )
+        tasks = [
+            (str(root), c, f, s, str(cache), pdict, k, edges, _opt_str(edge_dir))
+            for c in cls_list
+            for f, s in imgs
+        ]
+        results = {
+            (c, f, s): doc
+            for c, f, s, doc in _tracked(imap, _run_one, tasks, "ETHZ detect", progress)
+        }
         if collection:
-            a_tasks = [
-                (
-                    str(root),
-                    f,
-                    s,
-                    {
-                        c: [d["image_points"] for d in results[(c, f, s)]["detections"]]
-                        for c in cls_list
-                    },
+            looks = list(
+                _tracked(
+                    imap,
+                    _appearance_one,
+                    _appearance_tasks(root, imgs, cls_list, results),
+                    "ETHZ appearance",
+                    progress,
                 )
-                for f, s in imgs
-            ]
-            with tqdm(
-                total=len(a_tasks), disable=not progress, desc="ETHZ appearance", unit="img"
-            ) as abar:
-                for key, h, shape, sec in imap(_appearance_one, a_tasks):
-                    hists[key] = h
-                    shapes[key] = shape
-                    app_secs[key] = sec
-                    abar.update()
-
-    if workers <= 1:
-        _warm_up()
-        _run(None)
-    else:
-        import multiprocessing as mp
-
-        ctx = mp.get_context("spawn")
-        with ctx.Pool(workers, initializer=_warm_up) as pool:
-            _run(pool)
-    # a computed edge map serves every model run on its image: each run carries its share
-    share = {key: sec / len(cls_list) for key, sec in edge_secs.items()}
-    a_share = {key: sec / len(cls_list) for key, sec in app_secs.items()}
-    for (_c, f, s), doc in results.items():
-        extra = share.get(f"{f}/{s}", 0.0)
-        if extra:
-            doc = dict(doc, seconds=doc["seconds"] + extra)
-            doc["timings"] = dict(doc["timings"], edges=doc["timings"].get("edges", 0.0) + extra)
-        a = a_share.get(f"{f}/{s}", 0.0)
-        if a:
-            doc = dict(doc, seconds=doc["seconds"] + a)
-            doc["timings"] = dict(doc["timings"], appearance=a)
-        results[(_c, f, s)] = doc
+            )
+    app_secs = {key: sec for key, _h, _shape, sec in looks}
+    # a computed edge map and the colour bins serve every model run on their image: each
+    # run carries its share
+    _charge_shared(results, edge_secs, len(cls_list), "edges")
+    _charge_shared(results, app_secs, len(cls_list), "appearance")
     if collection:
         from ._model import load_model
 
@@ -653,19 +589,170 @@ def evaluate_ethz(
             c: load_model(root / "models" / f"{ETHZ_CLASSES[c][1]}.tif", m=params.m).points
             for c in cls_list
         }
+        hists = {key: h for key, h, _shape, _sec in looks}
+        shapes = {key: shape for key, _h, shape, _sec in looks}
         _collection_rank(results, hists, shapes, models, params)
     rank_by = "collection_score" if collection else "score"
 
+    out, curves, n_gt = _score(root, results, cls_list, imgs, rank_by)
+    out.update(_timing_summary(results, edge_secs, edges, len(cls_list)))
+    if edge_secs:
+        out["edge_cache_dir"] = str(edge_dir)
+    if source.info is not None:
+        out["edge_weights"] = source.info
+    out["edges"] = edges
+    out["ranked_by"] = rank_by
+    out["ranked_by_note"] = _ranked_by_note(params, collection)
+    out["n_images"] = len(imgs)
+    out["n_gt"] = n_gt
+    out["k"] = k
+    out["classes"] = cls_list
+    out["params"] = pdict
+    out["protocol"] = (
+        "hand-drawn model vs all images; IoU>=0.2 (overlap_20) or >=0.5 (overlap_50) with an "
+        "unclaimed GT box; DR at FPPI<=x is the max DR over score thresholds with FPPI<=x"
+    )
+    out["cache_dir"] = str(cache)
+    if json_path is not None:
+        atomic_write_bytes(json_path, (json.dumps(out, indent=2) + "\n").encode())
+    if out_dir is not None:
+        _plots(Path(out_dir), root, cls_list, curves, results, imgs)
+    return out
+
+
+def _opt_str(path: Path | None) -> str | None:
+    return None if path is None else str(path)
+
+
+@dataclass(frozen=True)
+class _EdgeSource:
+    """An edge source of the protocol, checked: its name, and for ``pidinet`` its weights
+    (the file's path, SHA-256 and the record that goes into the result)."""
+
+    edges: str
+    weights_path: str | None = None
+    sha: str | None = None
+    info: dict[str, Any] | None = None
+
+    @classmethod
+    def resolve(cls, edges: str, edge_weights: str | os.PathLike[str] | None) -> _EdgeSource:
+        if edges not in EDGE_SOURCES:
+            raise ShapeTreeError(f"unknown edge source {edges!r}; choose one of {EDGE_SOURCES}")
+        if edges == "pidinet":
+            from ._pidinet import load_pidinet
+
+            net = load_pidinet(edge_weights)  # a clear ShapeTreeError for missing / bad weights
+            info = {"file": net.path.name, "sha256": net.sha256, "variant": net.variant}
+            return cls(edges, str(net.path), net.sha256, info)
+        if edge_weights is not None:
+            raise ShapeTreeError(f"edge_weights is for edges='pidinet', not {edges!r}")
+        return cls(edges)
+
+    @property
+    def key(self) -> str:
+        """The source as it enters the detection cache key (:func:`_params_key`)."""
+        return self.edges if self.sha is None else f"{self.edges}:{self.sha}"
+
+    def edge_tasks(
+        self, root: Path, imgs: Sequence[tuple[str, str]], final: Path | None, raw: Path | None
+    ) -> list[tuple[str, str, str, str, str | None, str, str | None]]:
+        """One :func:`_edge_one` task per image for a computed source, none for Pb."""
+        if final is None:
+            return []
+        return [
+            (str(root), f, s, self.edges, self.weights_path, str(final), _opt_str(raw))
+            for f, s in imgs
+        ]
+
+
+def _class_list(classes: Sequence[str] | None) -> list[str]:
+    """The classes to run, checked against :data:`ETHZ_CLASSES` (default all, in order)."""
+    cls_list = list(classes) if classes else list(ETHZ_CLASSES)
+    for c in cls_list:
+        if c not in ETHZ_CLASSES:
+            raise DatasetError(f"unknown ETHZ class {c!r}; known: {sorted(ETHZ_CLASSES)}")
+    return cls_list
+
+
+@contextmanager
+def _mapper(workers: int) -> Iterator[Callable[[Callable, list], Iterable]]:
+    """``map`` in this process (``workers <= 1``) or over a pool of spawned workers, each
+    warmed up by :func:`_warm_up`; results arrive in any order."""
+    if workers <= 1:
+        _warm_up()
+        yield map
+        return
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(workers, initializer=_warm_up) as pool:
+        yield lambda fn, items: pool.imap_unordered(fn, items, chunksize=1)
+
+
+def _tracked(
+    imap: Callable[[Callable, list], Iterable], fn: Callable, tasks: list, desc: str, progress: bool
+) -> Iterator:
+    """``imap(fn, tasks)`` under a tqdm bar (per image); nothing, and no bar, without tasks."""
+    if not tasks:
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=len(tasks), disable=not progress, desc=desc, unit="img") as bar:
+        for item in imap(fn, tasks):
+            yield item
+            bar.update()
+
+
+def _appearance_tasks(
+    root: Path,
+    imgs: Sequence[tuple[str, str]],
+    cls_list: Sequence[str],
+    results: dict[tuple[str, str, str], dict],
+) -> list[tuple[str, str, str, dict[str, list]]]:
+    """One :func:`_appearance_one` task per image: every class's placed outlines in it."""
+    return [
+        (
+            str(root),
+            f,
+            s,
+            {c: [d["image_points"] for d in results[(c, f, s)]["detections"]] for c in cls_list},
+        )
+        for f, s in imgs
+    ]
+
+
+def _charge_shared(
+    results: dict[tuple[str, str, str], dict], secs: dict[str, float], n_models: int, stage: str
+) -> None:
+    """Add each image's once-per-image time ``secs`` (an edge map, the colour bins), split
+    over the ``n_models`` runs on it, to every run's seconds and its ``stage`` (in place)."""
+    for key, doc in results.items():
+        extra = secs.get(f"{key[1]}/{key[2]}", 0.0) / n_models
+        if extra:
+            doc = dict(doc, seconds=doc["seconds"] + extra)
+            doc["timings"] = dict(doc["timings"], **{stage: doc["timings"].get(stage, 0.0) + extra})
+            results[key] = doc
+
+
+def _score(
+    root: Path,
+    results: dict[tuple[str, str, str], dict],
+    cls_list: Sequence[str],
+    imgs: Sequence[tuple[str, str]],
+    rank_by: str,
+) -> tuple[dict[str, Any], dict[tuple[str, float], tuple[np.ndarray, np.ndarray]], dict[str, int]]:
+    """DR at 0.3 / 0.4 FPPI and the share of boxes any kept detection finds, per class and
+    their mean, under both overlap rules; the DR/FPPI curves; the ground-truth counts."""
     out: dict[str, Any] = {"overlap_20": {}, "overlap_50": {}}
     curves: dict[tuple[str, float], tuple[np.ndarray, np.ndarray]] = {}
-    n_gt_total = {}
+    n_gt: dict[str, int] = {}
     for thr, key in ((0.2, "overlap_20"), (0.5, "overlap_50")):
         for at in (0.3, 0.4):
             out[key][f"dr_fppi_{at}"] = {}
         for c in cls_list:
             folder = ETHZ_CLASSES[c][0]
             gts = {f"{f}/{s}": _gt_boxes(root, f, s, c) for f, s in imgs if f == folder}
-            n_gt_total[c] = int(sum(len(g) for g in gts.values()))
+            n_gt[c] = int(sum(len(g) for g in gts.values()))
             dets = [
                 (f"{f}/{s}", d[rank_by], d["bbox"])
                 for f, s in imgs
@@ -679,17 +766,27 @@ def evaluate_ethz(
         for sub in [f"dr_fppi_{at}" for at in (0.3, 0.4)] + ["recall_any_k"]:
             v = out[key][sub]
             v["mean"] = round(float(np.mean([v[c] for c in cls_list])), 4)
+    return out, curves, n_gt
+
+
+def _timing_summary(
+    results: dict[tuple[str, str, str], dict],
+    edge_secs: dict[str, float],
+    edges: str,
+    n_models: int,
+) -> dict[str, Any]:
+    """Median / 90th percentile seconds of one detection run, per stage medians and means,
+    and for a computed edge source the per-image map times."""
     secs = np.array([d["seconds"] for d in results.values()])
-    out["seconds_per_image_median"] = round(float(np.median(secs)), 4)
-    out["seconds_per_image_p90"] = round(float(np.percentile(secs, 90)), 4)
-    out["seconds_breakdown_median"] = {
-        st: round(float(np.median([d["timings"].get(st, 0.0) for d in results.values()])), 4)
-        for st in STAGES
+    out: dict[str, Any] = {
+        "seconds_per_image_median": round(float(np.median(secs)), 4),
+        "seconds_per_image_p90": round(float(np.percentile(secs, 90)), 4),
     }
-    out["seconds_breakdown_mean"] = {
-        st: round(float(np.mean([d["timings"].get(st, 0.0) for d in results.values()])), 4)
-        for st in STAGES
-    }
+    for name, stat in (("median", np.median), ("mean", np.mean)):
+        out[f"seconds_breakdown_{name}"] = {
+            st: round(float(stat([d["timings"].get(st, 0.0) for d in results.values()])), 4)
+            for st in STAGES
+        }
     out["stages"] = dict(STAGES)
     out["seconds_per_image_note"] = (
         "one model on one image, one process (single core), "
@@ -697,7 +794,7 @@ def evaluate_ethz(
             "Pb edges read from disk"
             if edges == "pb"
             else f"{edges} edge map computed once per image, its time shared by the "
-            f"{len(cls_list)} models run on it"
+            f"{n_models} models run on it"
         )
         + "; includes contour tracing, tables and stitching"
     )
@@ -709,26 +806,6 @@ def evaluate_ethz(
             "seconds to compute one image's edge map (image read, map, thinning), once per "
             "image; a map read back from the edge cache keeps the time it took when made"
         )
-        out["edge_cache_dir"] = str(edge_dir)
-    if weights_info is not None:
-        out["edge_weights"] = weights_info
-    out["edges"] = edges
-    out["ranked_by"] = rank_by
-    out["ranked_by_note"] = _ranked_by_note(params, collection)
-    out["n_images"] = len(imgs)
-    out["n_gt"] = n_gt_total
-    out["k"] = k
-    out["classes"] = cls_list
-    out["params"] = pdict
-    out["protocol"] = (
-        "hand-drawn model vs all images; IoU>=0.2 (overlap_20) or >=0.5 (overlap_50) with an "
-        "unclaimed GT box; DR at FPPI<=x is the max DR over score thresholds with FPPI<=x"
-    )
-    out["cache_dir"] = str(cache)
-    if json_path is not None:
-        atomic_write_bytes(json_path, (json.dumps(out, indent=2) + "\n").encode())
-    if out_dir is not None:
-        _plots(Path(out_dir), root, cls_list, curves, results, imgs)
     return out
 
 
