@@ -326,33 +326,8 @@ def detect_images(
     if k < 1:
         raise ShapeTreeError(f"k must be >= 1, got {k}")
     imgs = [Path(i) for i in images]
-    edge_file: Path | None = None
-    if str(edges) in EDGE_METHODS:
-        edge_desc: dict[str, Any] = {"method": str(edges)}
-        p = dataclasses.replace(p, edge_method=str(edges))  # checks the weights (pidinet)
-        if p.edge_weights is not None:
-            from ._pidinet import check_weights
-
-            edge_desc["weights_sha256"] = check_weights(p.edge_weights)
-    else:
-        edge_file = Path(edges)
-        if len(imgs) != 1:
-            raise ShapeTreeError(
-                f"a stored edge map ({edge_file}) fits one image, got {len(imgs)}; "
-                f"use --edges {'/'.join(EDGE_METHODS)} for many"
-            )
-        if not edge_file.is_file():
-            raise ShapeTreeError(f"edge map file not found: {edge_file}")
-        edge_desc = {"file": str(edge_file), "sha256": _file_sha(edge_file)}
-    if isinstance(model, DetectionModel):
-        mdl = model
-        model_desc: dict[str, Any] = {"name": mdl.name, "points": mdl.points.round(6).tolist()}
-    else:
-        mpath = Path(model)
-        if not mpath.is_file():
-            raise ShapeTreeError(f"model file not found: {mpath}")
-        mdl = load_model(mpath, m=p.m)
-        model_desc = {"file": str(mpath), "sha256": _file_sha(mpath)}
+    p, edge_file, edge_desc = _edge_source(edges, len(imgs), p)
+    mdl, model_desc = _batch_model(model, p)
     p = dataclasses.replace(p, m=len(mdl.points))
     from shapetree import __version__
     from shapetree._cache import code_fingerprint
@@ -369,74 +344,35 @@ def detect_images(
     from tqdm import tqdm
 
     say = report or (lambda line: tqdm.write(line, file=sys.stderr))
-    out = Path(out_dir) if out_dir is not None else None
-    if out is not None:
-        if out.exists() and not out.is_dir():
-            raise ShapeTreeError(f"{out}: exists and is not a folder")
-        out.mkdir(parents=True, exist_ok=True)
-    jsonl_path: Path | None = None
-    stream: IO[str] | None = None
-    lines: dict[str, dict[str, Any]] = {}  # key -> record already in the JSON-lines file
-    if jsonl is not None:
-        if hasattr(jsonl, "write"):
-            stream = jsonl  # type: ignore[assignment]
-        else:
-            jsonl_path = Path(jsonl)
-            if jsonl_path.is_file():
-                for line in jsonl_path.read_text(encoding="utf-8").splitlines():
-                    try:
-                        rec = json.loads(line)
-                        lines[rec["key"]] = rec
-                    except (json.JSONDecodeError, KeyError, TypeError):
-                        continue  # a damaged line is recomputed
-    names = _record_names(imgs)
+    outputs = _Outputs.open(out_dir, jsonl, pictures)
+    model_name = model_desc.get("file", model_desc.get("name"))
     summary = BatchSummary()
     bar = tqdm(imgs, desc="detect", unit="img", disable=not progress, file=sys.stderr)
-    for img_path, name in zip(bar, names, strict=True):
+    for img_path, name in zip(bar, _record_names(imgs), strict=True):
         stamp = _image_stamp(img_path)
         key = hashlib.sha256(
             json.dumps({**base_key, "image": stamp}, sort_keys=True).encode()
         ).hexdigest()[:24]
-        rec_path = out / f"{name}.json" if out is not None and jsonl is None else None
-        pic_path = out / f"{name}.png" if out is not None and pictures else None
-        old = None if force else _existing(key, rec_path, pic_path, lines)
+        pic_path = outputs.picture_path(name)
+        old = None if force else outputs.existing(key, name)
         if old is not None:
             summary.skipped += 1
             if old.get("status") != "ok":  # the same file fails the same way: say so again
                 summary.failed += 1
                 say(f"shapetree: {img_path}: error: {old.get('error')} (recorded before)")
             summary.records.append(old)
-            if stream is not None:
-                stream.write(json.dumps(old) + "\n")
+            outputs.echo(old)
             continue
         record: dict[str, Any] = {
             "key": key,
             "image": str(img_path),
             "image_file": stamp,
-            "model": model_desc.get("file", model_desc.get("name")),
+            "model": model_name,
             "edges": edge_desc,
             "k": k,
         }
-        t0 = time.perf_counter()
         try:
-            if stamp["size"] == 0:
-                raise ImageError(f"image file {img_path} is empty (0 bytes)")
-            image = load_image(img_path)
-            run = detect_detailed(mdl, image, edges=edge_file, k=k, params=p)
-            if pic_path is not None:
-                from shapetree.plotting import plot_detections
-
-                plot_detections(run, image, title=f"{mdl.name} in {img_path.name}", path=pic_path)
-            record.update(
-                status="ok",
-                image_size=[int(image.shape[1]), int(image.shape[0])],
-                seconds=round(time.perf_counter() - t0, 4),
-                timings={s: round(v, 4) for s, v in run.timings.items()},
-                n_contours=len(run.contours),
-                model_points=run.model.points.round(3).tolist(),
-                picture=str(pic_path) if pic_path is not None else None,
-                detections=[_detection_record(d) for d in run.detections],
-            )
+            record.update(_detect_record(mdl, img_path, stamp, edge_file, k, p, pic_path))
             summary.done += 1
         except (ShapeTreeError, OSError, MemoryError) as exc:
             msg = " ".join(str(exc).split()) or type(exc).__name__
@@ -446,44 +382,193 @@ def detect_images(
         record["params"] = p.as_dict()
         record["shapetree_version"] = __version__
         summary.records.append(record)
+        outputs.write(key, name, record)
+    bar.close()
+    summary.ranking = collection_ranking(summary.records, p, progress=progress)
+    summary.ranking_path = outputs.write_ranking(summary.ranking, p, model_name)
+    summary.seconds = time.perf_counter() - t_start
+    return summary
+
+
+def _edge_source(
+    edges: str | os.PathLike[str], n_images: int, p: DetectParams
+) -> tuple[DetectParams, Path | None, dict[str, Any]]:
+    """The batch's edge source, checked: the parameters with its method, the stored map
+    (one image only) or None, and its description for the records' keys."""
+    if str(edges) in EDGE_METHODS:
+        edge_desc: dict[str, Any] = {"method": str(edges)}
+        p = dataclasses.replace(p, edge_method=str(edges))  # checks the weights (pidinet)
+        if p.edge_weights is not None:
+            from ._pidinet import check_weights
+
+            edge_desc["weights_sha256"] = check_weights(p.edge_weights)
+        return p, None, edge_desc
+    edge_file = Path(edges)
+    if n_images != 1:
+        raise ShapeTreeError(
+            f"a stored edge map ({edge_file}) fits one image, got {n_images}; "
+            f"use --edges {'/'.join(EDGE_METHODS)} for many"
+        )
+    if not edge_file.is_file():
+        raise ShapeTreeError(f"edge map file not found: {edge_file}")
+    return p, edge_file, {"file": str(edge_file), "sha256": _file_sha(edge_file)}
+
+
+def _batch_model(
+    model: str | os.PathLike[str] | DetectionModel, p: DetectParams
+) -> tuple[DetectionModel, dict[str, Any]]:
+    """The model, read at ``p.m`` points, and its description for the records' keys."""
+    if isinstance(model, DetectionModel):
+        return model, {"name": model.name, "points": model.points.round(6).tolist()}
+    mpath = Path(model)
+    if not mpath.is_file():
+        raise ShapeTreeError(f"model file not found: {mpath}")
+    return load_model(mpath, m=p.m), {"file": str(mpath), "sha256": _file_sha(mpath)}
+
+
+def _detect_record(
+    mdl: DetectionModel,
+    img_path: Path,
+    stamp: dict[str, Any],
+    edge_file: Path | None,
+    k: int,
+    p: DetectParams,
+    pic_path: Path | None,
+) -> dict[str, Any]:
+    """Detect the model in one image (and draw it): the record's fields of a success.
+    Raises for an empty or unreadable image."""
+    t0 = time.perf_counter()
+    if stamp["size"] == 0:
+        raise ImageError(f"image file {img_path} is empty (0 bytes)")
+    image = load_image(img_path)
+    run = detect_detailed(mdl, image, edges=edge_file, k=k, params=p)
+    if pic_path is not None:
+        from shapetree.plotting import plot_detections
+
+        plot_detections(run, image, title=f"{mdl.name} in {img_path.name}", path=pic_path)
+    return {
+        "status": "ok",
+        "image_size": [int(image.shape[1]), int(image.shape[0])],
+        "seconds": round(time.perf_counter() - t0, 4),
+        "timings": {s: round(v, 4) for s, v in run.timings.items()},
+        "n_contours": len(run.contours),
+        "model_points": run.model.points.round(3).tolist(),
+        "picture": str(pic_path) if pic_path is not None else None,
+        "detections": [_detection_record(d) for d in run.detections],
+    }
+
+
+@dataclass
+class _Outputs:
+    """Where a batch writes: per-image ``<name>.json`` records and ``<name>.png``
+    pictures in a folder, a JSON-lines file (rewritten atomically after each image) or
+    stream, and the collection ranking; and the records already there."""
+
+    out: Path | None
+    pictures: bool
+    jsonl_path: Path | None = None
+    stream: IO[str] | None = None
+    lines: dict[str, dict[str, Any]] = field(default_factory=dict)  # key -> JSON-lines record
+
+    @classmethod
+    def open(
+        cls,
+        out_dir: str | os.PathLike[str] | None,
+        jsonl: str | os.PathLike[str] | IO[str] | None,
+        pictures: bool,
+    ) -> _Outputs:
+        out = Path(out_dir) if out_dir is not None else None
+        if out is not None:
+            if out.exists() and not out.is_dir():
+                raise ShapeTreeError(f"{out}: exists and is not a folder")
+            out.mkdir(parents=True, exist_ok=True)
+        self = cls(out, pictures)
+        if jsonl is None:
+            return self
+        if hasattr(jsonl, "write"):
+            self.stream = jsonl  # type: ignore[assignment]
+            return self
+        self.jsonl_path = Path(jsonl)  # type: ignore[arg-type]
+        if self.jsonl_path.is_file():
+            for line in self.jsonl_path.read_text(encoding="utf-8").splitlines():
+                try:
+                    rec = json.loads(line)
+                    self.lines[rec["key"]] = rec
+                except (json.JSONDecodeError, KeyError, TypeError):
+                    continue  # a damaged line is recomputed
+        return self
+
+    @property
+    def _jsonl(self) -> bool:
+        return self.jsonl_path is not None or self.stream is not None
+
+    def record_path(self, name: str) -> Path | None:
+        """The per-image record file: in the folder, unless JSON lines are written."""
+        return self.out / f"{name}.json" if self.out is not None and not self._jsonl else None
+
+    def picture_path(self, name: str) -> Path | None:
+        return self.out / f"{name}.png" if self.out is not None and self.pictures else None
+
+    def existing(self, key: str, name: str) -> dict[str, Any] | None:
+        """The stored record of this image with this key (see :func:`_existing`)."""
+        return _existing(key, self.record_path(name), self.picture_path(name), self.lines)
+
+    def echo(self, record: dict[str, Any]) -> None:
+        """A record kept from before goes to the stream again."""
+        if self.stream is not None:
+            self.stream.write(json.dumps(record) + "\n")
+
+    def write(self, key: str, name: str, record: dict[str, Any]) -> None:
+        """A new record: its file, the whole JSON-lines file again, or the stream."""
+        rec_path = self.record_path(name)
         if rec_path is not None:
             atomic_write_bytes(
                 rec_path, (json.dumps(record, indent=1) + "\n").encode(), fsync=False
             )
-        if jsonl_path is not None:
-            lines[key] = record
-            text = "".join(json.dumps(r) + "\n" for r in lines.values())
-            atomic_write_bytes(jsonl_path, text.encode(), fsync=False)
-        if stream is not None:
-            stream.write(json.dumps(record) + "\n")
-            stream.flush()
-    bar.close()
-    summary.ranking = collection_ranking(summary.records, p, progress=progress)
-    stale = [out / f"{RANKING_NAME}.json"] if out is not None else []
-    if jsonl_path is not None:
-        stale.append(jsonl_path.with_name(f"{jsonl_path.stem}.ranking.json"))
-    if not summary.ranking:  # a ranking of an earlier run would now mislead
-        for path in stale:
-            path.unlink(missing_ok=True)
-    else:
-        if out is not None:
-            summary.ranking_path = out / f"{RANKING_NAME}.json"
-        elif jsonl_path is not None:
-            summary.ranking_path = jsonl_path.with_name(f"{jsonl_path.stem}.ranking.json")
-        if summary.ranking_path is not None:
-            doc = {
-                "model": model_desc.get("file", model_desc.get("name")),
-                "n_images": len({d["image"] for d in summary.ranking}),
-                **{f: getattr(p, f) for f in COLLECTION_FIELDS},
-                "note": _ranking_note(p),
-                "detections": summary.ranking,
-            }
-            blob = (json.dumps(doc, indent=1) + "\n").encode()
-            path = summary.ranking_path
-            if not (path.is_file() and path.read_bytes() == blob):  # a rerun touches nothing
-                atomic_write_bytes(path, blob, fsync=False)
-    summary.seconds = time.perf_counter() - t_start
-    return summary
+        if self.jsonl_path is not None:
+            self.lines[key] = record
+            text = "".join(json.dumps(r) + "\n" for r in self.lines.values())
+            atomic_write_bytes(self.jsonl_path, text.encode(), fsync=False)
+        if self.stream is not None:
+            self.stream.write(json.dumps(record) + "\n")
+            self.stream.flush()
+
+    def ranking_path(self) -> Path | None:
+        """``ranking.json`` in the folder, else ``<stem>.ranking.json`` beside the
+        JSON-lines file; None for a stream alone."""
+        if self.out is not None:
+            return self.out / f"{RANKING_NAME}.json"
+        if self.jsonl_path is not None:
+            return self.jsonl_path.with_name(f"{self.jsonl_path.stem}.ranking.json")
+        return None
+
+    def write_ranking(
+        self, ranking: list[dict[str, Any]], p: DetectParams, model_name: Any
+    ) -> Path | None:
+        """Write the collection ranking atomically (a rerun with the same ranking touches
+        nothing) and return its path; with no ranking, remove the rankings of earlier
+        runs, which would now mislead."""
+        stale = [self.out / f"{RANKING_NAME}.json"] if self.out is not None else []
+        if self.jsonl_path is not None:
+            stale.append(self.jsonl_path.with_name(f"{self.jsonl_path.stem}.ranking.json"))
+        if not ranking:
+            for path in stale:
+                path.unlink(missing_ok=True)
+            return None
+        path = self.ranking_path()
+        if path is None:
+            return None
+        doc = {
+            "model": model_name,
+            "n_images": len({d["image"] for d in ranking}),
+            **{f: getattr(p, f) for f in COLLECTION_FIELDS},
+            "note": _ranking_note(p),
+            "detections": ranking,
+        }
+        blob = (json.dumps(doc, indent=1) + "\n").encode()
+        if not (path.is_file() and path.read_bytes() == blob):
+            atomic_write_bytes(path, blob, fsync=False)
+        return path
 
 
 def _existing(
