@@ -180,49 +180,9 @@ def evaluate(
     labels = np.asarray(ds.labels)
     stats: dict[str, Any] = {}
     t0 = time.perf_counter()
-    if p["neighbours"] is None:
-        costs = directed_costs(
-            ds.curves,
-            None,
-            cfg,
-            workers=p["workers"],
-            cache_dir=p["cache_dir"],
-            block=p["block"],
-            progress=progress,
-            desc=name,
-            stats=stats,
-            scheduler=p["dask"],
-        )
-        if arrays is not None:
-            arrays.update(costs=costs, labels=labels)
-        D = combine(costs, cfg.symmetrize)
-    else:
-        D = _neighbour_matrix(name, ds.curves, labels, cfg, p, progress, stats)
-        if arrays is not None:
-            arrays.update(labels=labels, neighbours=D)
+    D = _distances(name, ds.curves, labels, cfg, p, progress, stats, arrays)
     seconds_matrix = time.perf_counter() - t0
-    rec: dict[str, Any] = {"dataset": name}
-    pairwise = protocol_score(name, D, labels, p)
-    rec["pairwise"] = pairwise
-    rows: list[tuple[str, Any]] = [("Shape-tree (shapetree, pairwise)", headline(name, pairwise))]
-    if p["rerank"] == "tpg":
-        t1 = time.perf_counter()
-        D = tpg_rerank(D)
-        reranked = protocol_score(name, D, labels, p)
-        reranked["seconds"] = round(time.perf_counter() - t1, 2)
-        reranked["method"] = "tpg"
-        reranked["params"] = dict(RERANK_DEFAULTS)
-        rec["reranked"] = reranked
-        rows.insert(0, ("Shape-tree + TPG re-ranking (shapetree)", headline(name, reranked)))
-        rec["measure"] = (
-            "re-ranked: tensor product graph diffusion over the whole distance matrix "
-            "(not a pairwise measure); the pairwise score is under 'pairwise'"
-        )
-        chosen = reranked
-    else:
-        rec["measure"] = "pairwise: each distance depends only on the two shapes"
-        chosen = pairwise
-    rec.update({k: v for k, v in chosen.items() if k not in ("seconds", "method", "params")})
+    rec, rows, D = _scores(name, D, labels, p)
     table = format_table(name, rows=rows)
     if verbose:
         print(table)
@@ -232,37 +192,7 @@ def evaluate(
         )
     pictures: list[str] = []
     if out_dir is not None:
-        from shapetree.plotting._retrieval import save_bullseye_per_class as plot_bullseye_per_class
-        from shapetree.plotting._retrieval import save_retrieval_grid as plot_retrieval_grid
-
-        out = Path(out_dir)
-        pictures.append(
-            Path(
-                plot_retrieval_grid(
-                    D,
-                    labels,
-                    ds.curves,
-                    out / f"{name}_retrieval.png",
-                    n_top=p["n_show"],
-                    title=f"{name}: queries (left) and nearest shapes, wrong class in red"
-                    + (" (TPG re-ranked)" if p["rerank"] == "tpg" else " (pairwise)"),
-                )
-            ).name
-        )
-        if name == "mpeg7":
-            pictures.append(
-                Path(
-                    plot_bullseye_per_class(
-                        pairwise["bullseye_per_class"],
-                        out / f"{name}_bullseye_per_class.png",
-                        overall=pairwise["bullseye"],
-                        second=rec["reranked"]["bullseye_per_class"] if "reranked" in rec else None,
-                        second_overall=rec["reranked"]["bullseye"] if "reranked" in rec else None,
-                        labels=("pairwise", "TPG re-ranked"),
-                        title="MPEG-7 bull's-eye per class (bars: pairwise)",
-                    )
-                ).name
-            )
+        pictures = _pictures(Path(out_dir), name, D, labels, ds.curves, rec, p)
     rec.update(
         {
             "preset": _preset_name(config),
@@ -288,6 +218,107 @@ def evaluate(
     if json_path is not None:
         _write_json(Path(json_path), rec)
     return rec
+
+
+def _distances(
+    name: str,
+    curves: list,
+    labels: np.ndarray,
+    cfg: MatchConfig,
+    p: dict[str, Any],
+    progress: bool,
+    stats: dict[str, Any],
+    arrays: dict[str, Any] | None,
+) -> np.ndarray:
+    """The distance matrix the protocol ranks by: every pair (combined as
+    ``cfg.symmetrize`` says), or the exact nearest neighbours only (``neighbours``)."""
+    if p["neighbours"] is not None:
+        D = _neighbour_matrix(name, curves, labels, cfg, p, progress, stats)
+        if arrays is not None:
+            arrays.update(labels=labels, neighbours=D)
+        return D
+    costs = directed_costs(
+        curves,
+        None,
+        cfg,
+        workers=p["workers"],
+        cache_dir=p["cache_dir"],
+        block=p["block"],
+        progress=progress,
+        desc=name,
+        stats=stats,
+        scheduler=p["dask"],
+    )
+    if arrays is not None:
+        arrays.update(costs=costs, labels=labels)
+    return combine(costs, cfg.symmetrize)
+
+
+def _scores(
+    name: str, D: np.ndarray, labels: np.ndarray, p: dict[str, Any]
+) -> tuple[dict[str, Any], list[tuple[str, Any]], np.ndarray]:
+    """The record's scores: ``pairwise`` always, ``reranked`` with ``rerank="tpg"``, the
+    chosen measure's keys at the top; the table rows; the matrix the pictures show (the
+    re-ranked one when re-ranked)."""
+    rec: dict[str, Any] = {"dataset": name}
+    pairwise = protocol_score(name, D, labels, p)
+    rec["pairwise"] = pairwise
+    rows: list[tuple[str, Any]] = [("Shape-tree (shapetree, pairwise)", headline(name, pairwise))]
+    if p["rerank"] == "tpg":
+        t1 = time.perf_counter()
+        D = tpg_rerank(D)
+        reranked = protocol_score(name, D, labels, p)
+        reranked["seconds"] = round(time.perf_counter() - t1, 2)
+        reranked["method"] = "tpg"
+        reranked["params"] = dict(RERANK_DEFAULTS)
+        rec["reranked"] = reranked
+        rows.insert(0, ("Shape-tree + TPG re-ranking (shapetree)", headline(name, reranked)))
+        rec["measure"] = (
+            "re-ranked: tensor product graph diffusion over the whole distance matrix "
+            "(not a pairwise measure); the pairwise score is under 'pairwise'"
+        )
+        chosen = reranked
+    else:
+        rec["measure"] = "pairwise: each distance depends only on the two shapes"
+        chosen = pairwise
+    rec.update({k: v for k, v in chosen.items() if k not in ("seconds", "method", "params")})
+    return rec, rows, D
+
+
+def _pictures(
+    out: Path,
+    name: str,
+    D: np.ndarray,
+    labels: np.ndarray,
+    curves: list,
+    rec: dict[str, Any],
+    p: dict[str, Any],
+) -> list[str]:
+    """Draw the retrieval grid (and for mpeg7 the per-class bull's-eye bars) into
+    ``out``; their file names."""
+    from shapetree.plotting._retrieval import save_bullseye_per_class as plot_bullseye_per_class
+    from shapetree.plotting._retrieval import save_retrieval_grid as plot_retrieval_grid
+
+    title = f"{name}: queries (left) and nearest shapes, wrong class in red" + (
+        " (TPG re-ranked)" if p["rerank"] == "tpg" else " (pairwise)"
+    )
+    grid = plot_retrieval_grid(
+        D, labels, curves, out / f"{name}_retrieval.png", n_top=p["n_show"], title=title
+    )
+    pictures = [Path(grid).name]
+    if name == "mpeg7":
+        pairwise, reranked = rec["pairwise"], rec.get("reranked")
+        bars = plot_bullseye_per_class(
+            pairwise["bullseye_per_class"],
+            out / f"{name}_bullseye_per_class.png",
+            overall=pairwise["bullseye"],
+            second=reranked["bullseye_per_class"] if reranked else None,
+            second_overall=reranked["bullseye"] if reranked else None,
+            labels=("pairwise", "TPG re-ranked"),
+            title="MPEG-7 bull's-eye per class (bars: pairwise)",
+        )
+        pictures.append(Path(bars).name)
+    return pictures
 
 
 def _needed_neighbours(name: str, p: dict[str, Any]) -> int:
