@@ -651,24 +651,10 @@ def detect_detailed(
     else:
         mdl = load_model(model, m=p.m)
     img = _as_image(image)
-    if contours is not None:
-        e = np.zeros(img.shape[:2]) if img is not None else np.zeros((0, 0))
-    elif edges is None:
-        if img is None:
-            raise ImageError("detect needs an image or an edge map")
-        e = edge_map(img, method=p.edge_method, weights=p.edge_weights)
-    elif isinstance(edges, (str, os.PathLike)):
-        e = load_edges(edges)
-    else:
-        e = np.clip(np.asarray(edges, dtype=np.float64), 0.0, 1.0)
-    if e.ndim != 2:
-        raise ImageError(f"edge map must be 2-D, got shape {e.shape}")
-    if contours is None and img is not None and img.shape[:2] != e.shape:
-        raise ImageError(f"edge map shape {e.shape} differs from image shape {img.shape[:2]}")
+    e = _edge_input(img, edges, contours is not None, p)
     timings["edges"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    strengths: list[float] = []
     if contours is not None:
         dense = _given_contours(contours)
         strengths = [1.0] * len(dense)  # given contours count as full edge evidence
@@ -700,8 +686,53 @@ def detect_detailed(
     timings["tables"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    base = _piece_costs(p, mdl.points, tables, strengths, dense)
+    res = _stitch_contours(p, mdl, base, dense)
+    timings["stitch"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    run.detections = _select(p, res, mdl, dense, base, e, k)
+    timings["select"] = time.perf_counter() - t0
+    return run
+
+
+def _edge_input(
+    img: NDArray[np.float64] | None,
+    edges: ArrayLike | str | os.PathLike[str] | None,
+    given_contours: bool,
+    p: DetectParams,
+) -> NDArray[np.float64]:
+    """The edge map a detection traces: computed from the image (``p.edge_method``), read
+    from a file, or given; an empty map of the image's size when contours are given."""
+    if given_contours:
+        e = np.zeros(img.shape[:2]) if img is not None else np.zeros((0, 0))
+    elif edges is None:
+        if img is None:
+            raise ImageError("detect needs an image or an edge map")
+        e = edge_map(img, method=p.edge_method, weights=p.edge_weights)
+    elif isinstance(edges, (str, os.PathLike)):
+        e = load_edges(edges)
+    else:
+        e = np.clip(np.asarray(edges, dtype=np.float64), 0.0, 1.0)
+    if e.ndim != 2:
+        raise ImageError(f"edge map must be 2-D, got shape {e.shape}")
+    if not given_contours and img is not None and img.shape[:2] != e.shape:
+        raise ImageError(f"edge map shape {e.shape} differs from image shape {img.shape[:2]}")
+    return e
+
+
+def _piece_costs(
+    p: DetectParams,
+    mpts: NDArray[np.float64],
+    tables: NDArray[np.float64],
+    strengths: list[float],
+    dense: list[NDArray[np.float64]],
+) -> NDArray[np.float64]:
+    """``base[d, a, L]``: the cost of matching contour ``d`` (both directions, ``2 nc``
+    rows) to the model subcurve of ``L`` segments from sample ``a``: the weighted
+    section 3 table scaled by the subcurve's share of the model, a per-piece cost and
+    the evidence terms; ``L = 0`` is impossible."""
     m = p.m
-    mpts = mdl.points
     seg = np.hypot(*(np.roll(mpts, -1, axis=0) - mpts).T)
     cum = np.concatenate([[0.0], np.cumsum(np.concatenate([seg, seg]))])
     idx = np.arange(m)[:, None] + np.arange(m)[None, :]
@@ -710,6 +741,17 @@ def detect_detailed(
         base = p.table_weight * frac[None] * tables + p.piece_cost
     base += _evidence_costs(p, frac, np.asarray(strengths), [polyline_length(c) for c in dense])
     base[:, :, 0] = np.inf
+    return base
+
+
+def _stitch_contours(
+    p: DetectParams,
+    mdl: DetectionModel,
+    base: NDArray[np.float64],
+    dense: list[NDArray[np.float64]],
+) -> Any:
+    """Run the stitching DP over the contours, each a piece in both directions (its two
+    ends, its box) with the piece costs ``base``."""
     nc = len(dense)
     ends = np.empty((2 * nc, 2))
     ends[0::2] = [c[0] for c in dense]
@@ -719,8 +761,8 @@ def detect_detailed(
     piece_p[0::2], piece_q[0::2] = 2 * np.arange(nc), 2 * np.arange(nc) + 1
     piece_p[1::2], piece_q[1::2] = 2 * np.arange(nc) + 1, 2 * np.arange(nc)
     boxes = np.array([[c[:, 0].min(), c[:, 1].min(), c[:, 0].max(), c[:, 1].max()] for c in dense])
-    res = run_stitch(
-        mpts,
+    return run_stitch(
+        mdl.points,
         mdl.gap_weight,
         base,
         piece_p,
@@ -733,12 +775,23 @@ def detect_detailed(
         gap_cost=p.gap_cost,
         beam=p.beam,
         per_end=p.per_end,
-        max_gap=p.max_gap if p.max_gap is not None else m // 2,
+        max_gap=p.max_gap if p.max_gap is not None else p.m // 2,
         gap_beam=p.gap_beam,
     )
-    timings["stitch"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
+
+def _select(
+    p: DetectParams,
+    res: Any,
+    mdl: DetectionModel,
+    dense: list[NDArray[np.float64]],
+    base: NDArray[np.float64],
+    e: NDArray[np.float64],
+    k: int,
+) -> list[Detection]:
+    """Up to ``k`` detections from the complete matches, cheapest first: each
+    reconstructed, dropped if too small or covering too little of the model, suppressed
+    by a kept box; then ranked by their score, with the template check of each box."""
     ids, costs = complete_matches(res)
     kept: list[Detection] = []
     kept_boxes = np.zeros((0, 4))
@@ -770,9 +823,7 @@ def detect_detailed(
         tm = template_model(kept[0].model_points)
         kept = [dataclasses.replace(d, **template_terms(fields, tm, d.bbox)) for d in kept]
     kept.sort(key=lambda d: -d.score)
-    timings["select"] = time.perf_counter() - t0
-    run.detections = kept
-    return run
+    return kept
 
 
 def detect(
