@@ -238,16 +238,7 @@ def _distances(
             arrays.update(labels=labels, neighbours=D)
         return D
     costs = directed_costs(
-        curves,
-        None,
-        cfg,
-        workers=p["workers"],
-        cache_dir=p["cache_dir"],
-        block=p["block"],
-        progress=progress,
-        desc=name,
-        stats=stats,
-        scheduler=p["dask"],
+        curves, None, cfg, **_run_options(p, progress), desc=name, stats=stats, scheduler=p["dask"]
     )
     if arrays is not None:
         arrays.update(costs=costs, labels=labels)
@@ -283,6 +274,16 @@ def _scores(
         chosen = pairwise
     rec.update({k: v for k, v in chosen.items() if k not in ("seconds", "method", "params")})
     return rec, rows, D
+
+
+def _run_options(p: dict[str, Any], progress: bool) -> dict[str, Any]:
+    """The engine's run options of an evaluation (the same for all pairs and for k-NN)."""
+    return {
+        "workers": p["workers"],
+        "cache_dir": p["cache_dir"],
+        "block": p["block"],
+        "progress": progress,
+    }
 
 
 def _pictures(
@@ -361,16 +362,7 @@ def _neighbour_matrix(
     # one cluster (or connection) for the search and the full rows after it
     with open_scheduler(p["dask"]) as sched:
         idx, dist = knn(
-            curves,
-            curves,
-            cfg,
-            k=K,
-            workers=p["workers"],
-            cache_dir=p["cache_dir"],
-            block=p["block"],
-            progress=progress,
-            stats=kstats,
-            scheduler=sched,
+            curves, curves, cfg, k=K, **_run_options(p, progress), stats=kstats, scheduler=sched
         )
         D = np.full((n, n), np.inf)
         np.put_along_axis(D, idx, dist, axis=1)
