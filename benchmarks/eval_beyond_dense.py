@@ -303,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
         t: {k: round(v, 6) for k, v in p.items()} for t, p in probes.items()
     }
     write_json(out_path, out)
-    print(f"\n{'target':13s} {'held-out choice (33 candidates)':34s} {'no time limit':26s}")
+    print(f"\n{'target':13s} {'held-out choice (30 candidates)':34s} {'no time limit':26s}")
     for t, c in out["choices"].items():
         print(f"{t:13s} {c['within_budget']['chosen']:34s} {c['no_time_limit']['chosen']:26s}")
     base.PNG_PREFIX = "beyond_paper_dense"
