@@ -1,0 +1,92 @@
+"""The held-out choices of ``benchmarks/kimia_cv.py`` and ``benchmarks/ethz_edge_agreement.py``.
+
+Small synthetic cases whose answers are known: the per-query hits add up to
+:func:`shapetree.retrieval.kimia_ranks`, a fold never sees the class it scores, and the
+agreement terms are the IoUs and score margins they are defined as.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shapetree.retrieval import kimia_ranks
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+kimia_cv = pytest.importorskip("kimia_cv")
+agreement = pytest.importorskip("ethz_edge_agreement")
+
+
+def _distances(labels: np.ndarray, noise: float, seed: int) -> np.ndarray:
+    """Same class near (0.1-0.2), other classes far (1-2), plus noise."""
+    rng = np.random.default_rng(seed)
+    same = labels[:, None] == labels[None, :]
+    D = (
+        np.where(same, 0.1, 1.0)
+        + rng.uniform(0, 0.1, (len(labels),) * 2)
+        + noise * rng.random((len(labels),) * 2)
+    )
+    np.fill_diagonal(D, 0.0)
+    return D
+
+
+def test_query_hits_add_up_to_the_kimia_row() -> None:
+    labels = np.repeat(["a", "b", "c"], 5)
+    D = _distances(labels, 1.2, 0)
+    hits = kimia_cv.query_hits(D, labels, n_ranks=4)
+    assert hits.shape == (15, 4)
+    assert hits.sum(axis=0).tolist() == kimia_ranks(D, labels, n_ranks=4).tolist()
+
+
+def test_cross_validation_chooses_without_the_scored_class() -> None:
+    labels = np.repeat(["a", "b", "c"], 4)
+    n = len(labels)
+    # "good_ab" finds every neighbour of classes a and b and none of c; "good_c" the reverse
+    good_ab = np.zeros((n, 3), int)
+    good_ab[labels != "c"] = 1
+    good_c = 1 - good_ab
+    hits = {"good_ab": good_ab, "good_c": good_c}
+    runs = {"good_ab": 1, "good_c": 1}
+    row, folds = kimia_cv.cross_validate(hits, labels, runs)
+    # holding out c, good_ab has 24 training hits against 0 and scores c's queries 0; holding
+    # out a (or b) the two tie at 12 and the name decides (good_ab)
+    assert folds["c"]["chosen"] == "good_ab"
+    assert folds["c"]["held_out_row"] == [0, 0, 0]
+    assert folds["a"]["chosen"] == "good_ab" and folds["b"]["chosen"] == "good_ab"
+    assert row.tolist() == [8, 8, 8]
+    # with one candidate the held-out row is its full row
+    row1, _ = kimia_cv.cross_validate({"only": good_c}, labels, {"only": 1})
+    assert row1.tolist() == good_c.sum(axis=0).tolist()
+
+
+def test_cross_validation_ties_go_to_fewer_runs() -> None:
+    labels = np.repeat(["a", "b"], 3)
+    h = np.ones((6, 2), int)
+    _, folds = kimia_cv.cross_validate(
+        {"z_cheap": h, "a_dear": h}, labels, {"z_cheap": 1, "a_dear": 3}
+    )
+    assert {f["chosen"] for f in folds.values()} == {"z_cheap"}
+
+
+def test_agreement_terms(tmp_path: Path) -> None:
+    second = tmp_path / "mugs"
+    second.mkdir()
+    dets = [
+        {"bbox": [0, 0, 10, 10], "score": -1.0},  # the second run's best
+        {"bbox": [20, 20, 30, 30], "score": -1.5},
+    ]
+    (second / "Mugs__x.json").write_text(json.dumps({"detections": dets}))
+    rows = [
+        {"cls": "mugs", "key": "Mugs/x", "bbox": [0, 0, 10, 10]},  # the best itself
+        {"cls": "mugs", "key": "Mugs/x", "bbox": [20, 20, 30, 40]},  # IoU 0.5 with the second
+        {"cls": "mugs", "key": "Mugs/x", "bbox": [100, 100, 110, 110]},  # no overlap
+    ]
+    out = agreement.agreement(rows, tmp_path)
+    assert out["agree"].tolist() == pytest.approx([1.0, 0.5, 0.0])
+    assert out["agree_top"].tolist() == pytest.approx([1.0, 0.0, 0.0])
+    # IoU 0.5 is not > 0.5: no overlapping box, so -1; the best itself: margin 0
+    assert out["agree_score"].tolist() == pytest.approx([0.0, -1.0, -1.0])
