@@ -84,16 +84,8 @@ def _aucs(sc, v: np.ndarray, label: np.ndarray) -> dict:
 
 
 def nested_set_choice(sc, label, x_of: dict) -> dict:
-    """The term set chosen inside each fold by the inner leave-one-class-out mean over the
-    four training classes (with its L2), fitted on them and scored on the fifth."""
-    held, chosen = {}, {}
-    classes = list(ETHZ_CLASSES)
-    for c_out in classes:
-        inner = [c for c in classes if c != c_out]
-        res = {n: T._inner_best(sc, x, label, inner) for n, x in x_of.items()}
-        name = max(res, key=lambda n: res[n])
-        chosen[c_out] = {"set": name, "l2": res[name][1], "inner_mean": round(res[name][0], 4)}
-        held[c_out] = sc.dr(c_out, V._fit_score(x_of[name], label, sc.cls != c_out, res[name][1]))
+    """The term set chosen inside each fold (:func:`ethz_template.choose_in_folds`)."""
+    held, chosen = T.choose_in_folds(sc, label, x_of)
     return {
         "chosen": chosen,
         "loco_overlap_20": V._with_mean(held, 0),
@@ -130,16 +122,11 @@ def main() -> None:
     for name, x in x_of.items():
         res = V._logistic_nested(sc, x, label)["logistic_nested_l2"]
         run["logistic"][name] = res
-        print(
-            f"{name:12s} held out {res['loco_overlap_20']['mean']:.4f} / "
-            f"{res['loco_overlap_50']['mean']:.4f}  {res['loco_overlap_20']}",
-            flush=True,
-        )
+        print(T.held_text(f"{name:12s}", res), flush=True)
     run["set_chosen_in_each_fold"] = nc = nested_set_choice(sc, label, x_of)
     print(
-        f"set chosen in each fold: held out {nc['loco_overlap_20']['mean']:.4f} / "
-        f"{nc['loco_overlap_50']['mean']:.4f} {nc['loco_overlap_20']} "
-        f"{ {c: v['set'] for c, v in nc['chosen'].items()} }"
+        T.held_text("set chosen in each fold:", nc),
+        {c: v["set"] for c, v in nc["chosen"].items()},
     )
     run["seconds"] = round(time.perf_counter() - t0, 1)
     path = Path(args.json)

@@ -106,10 +106,10 @@ def _inner_best(sc, x, label, classes) -> tuple[float, float]:
     return best
 
 
-def nested_choice(sc, label, x_of: dict) -> dict:
-    """The term set chosen inside each fold (the best inner leave-one-class-out mean over
-    the four training classes, its L2 with it), scored on the fifth; and the set and L2
-    chosen on all five, fitted on all five: the constants to ship."""
+def choose_in_folds(sc, label, x_of: dict) -> tuple[dict, dict]:
+    """For each class left out, the term set (and L2) with the best inner
+    leave-one-class-out mean over the four training classes, fitted on them and scored on
+    the fifth: ``({class: DR}, {class: choice})``."""
     held, chosen = {}, {}
     classes = list(ETHZ_CLASSES)
     for c_out in classes:
@@ -119,6 +119,23 @@ def nested_choice(sc, label, x_of: dict) -> dict:
         chosen[c_out] = {"set": name, "l2": res[name][1], "inner_mean": round(res[name][0], 4)}
         x = x_of[name]
         held[c_out] = sc.dr(c_out, V._fit_score(x, label, sc.cls != c_out, res[name][1]))
+    return held, chosen
+
+
+def held_text(name: str, held: dict) -> str:
+    """One printed line: a held-out record's mean DR under both rules and per class."""
+    return (
+        f"{name} held out {held['loco_overlap_20']['mean']:.4f} / "
+        f"{held['loco_overlap_50']['mean']:.4f}  {held['loco_overlap_20']}"
+    )
+
+
+def nested_choice(sc, label, x_of: dict) -> dict:
+    """The term set chosen inside each fold (the best inner leave-one-class-out mean over
+    the four training classes, its L2 with it), scored on the fifth; and the set and L2
+    chosen on all five, fitted on all five: the constants to ship."""
+    held, chosen = choose_in_folds(sc, label, x_of)
+    classes = list(ETHZ_CLASSES)
     res = {n: _inner_best(sc, x, label, classes) for n, x in x_of.items()}
     name = max(res, key=lambda n: res[n])
     x, l2 = x_of[name], res[name][1]
@@ -217,17 +234,11 @@ def main() -> None:
     for name, x in x_of.items():
         res = V._logistic_nested(sc, x, label)
         out["logistic"][name] = {"terms": list(CT.SHIPPED + CANDIDATES[name]), **res}
-        held = res["logistic_nested_l2"]
-        print(
-            f"{name:44s} held out {held['loco_overlap_20']['mean']:.4f} / "
-            f"{held['loco_overlap_50']['mean']:.4f}  in sample "
-            f"{res['logistic_in_sample']['overlap_20']['mean']:.4f}  {held['loco_overlap_20']}",
-            flush=True,
-        )
+        ins = res["logistic_in_sample"]["overlap_20"]["mean"]
+        print(f"{held_text(f'{name:44s}', res['logistic_nested_l2'])}  in sample {ins:.4f}")
     out["set_chosen_in_each_fold"] = nc = nested_choice(sc, label, x_of)
     print(
-        f"set chosen in each fold: held out {nc['loco_overlap_20']['mean']:.4f} / "
-        f"{nc['loco_overlap_50']['mean']:.4f} {nc['loco_overlap_20']}  "
+        f"{held_text('set chosen in each fold:', nc)}  "
         f"{ {c: v['set'] for c, v in nc['chosen'].items()} }; on all five: "
         f"{nc['fit_all']['set']} (l2 {nc['fit_all']['l2']})"
     )
