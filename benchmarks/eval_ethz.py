@@ -101,8 +101,10 @@ def main() -> None:
         calibrate_pidinet(args.data, args.edge_weights, args.cache_dir)
         return
     results = REPO / "benchmarks" / "results"
-    if args.json is None and args.param:
-        raise SystemExit("--param changes the shipped parameters: name the result with --json")
+    if args.json is None and (args.param or args.k != 5):
+        raise SystemExit(
+            "--param or --k changes the shipped parameters: name the result with --json"
+        )
     shipped_run = args.json is None and args.k == 5
     if args.json is None:
         name = {"pb": "ethz.json", "own": "ethz_own.json", "pidinet": "ethz_pidinet.json"}
