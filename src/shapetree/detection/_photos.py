@@ -533,31 +533,28 @@ class _Outputs:
             self.stream.write(json.dumps(record) + "\n")
             self.stream.flush()
 
-    def ranking_path(self) -> Path | None:
-        """``ranking.json`` in the folder, else ``<stem>.ranking.json`` beside the
-        JSON-lines file; None for a stream alone."""
-        if self.out is not None:
-            return self.out / f"{RANKING_NAME}.json"
+    def _ranking_paths(self) -> list[Path]:
+        """Where a ranking goes, first choice first: ``ranking.json`` in the folder, then
+        ``<stem>.ranking.json`` beside the JSON-lines file; none for a stream alone."""
+        paths = [self.out / f"{RANKING_NAME}.json"] if self.out is not None else []
         if self.jsonl_path is not None:
-            return self.jsonl_path.with_name(f"{self.jsonl_path.stem}.ranking.json")
-        return None
+            paths.append(self.jsonl_path.with_name(f"{self.jsonl_path.stem}.ranking.json"))
+        return paths
 
     def write_ranking(
         self, ranking: list[dict[str, Any]], p: DetectParams, model_name: Any
     ) -> Path | None:
-        """Write the collection ranking atomically (a rerun with the same ranking touches
-        nothing) and return its path; with no ranking, remove the rankings of earlier
-        runs, which would now mislead."""
-        stale = [self.out / f"{RANKING_NAME}.json"] if self.out is not None else []
-        if self.jsonl_path is not None:
-            stale.append(self.jsonl_path.with_name(f"{self.jsonl_path.stem}.ranking.json"))
+        """Write the collection ranking atomically to the first of :meth:`_ranking_paths`
+        (a rerun with the same ranking touches nothing) and return its path; with no
+        ranking, remove the rankings of earlier runs there, which would now mislead."""
+        paths = self._ranking_paths()
         if not ranking:
-            for path in stale:
+            for path in paths:
                 path.unlink(missing_ok=True)
             return None
-        path = self.ranking_path()
-        if path is None:
+        if not paths:
             return None
+        path = paths[0]
         doc = {
             "model": model_name,
             "n_images": len({d["image"] for d in ranking}),
