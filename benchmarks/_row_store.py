@@ -10,7 +10,10 @@ so a run resumes from the committed file on any machine.
 
 The file is tied to the engine's cache key of the whole problem (code fingerprint,
 options, the sampled curves in the run's order): a file made by other code, other options
-or another order is not read.
+or another order is not read as it is. It may be *adopted* (:func:`adopt`) when the current
+code, recomputing a spread sample of its rows, gives every one of them identically (a
+change that leaves the costs alone, such as input validation or a faster curve check,
+changes the fingerprint but not a row); the file then records the check.
 """
 
 from __future__ import annotations
@@ -81,15 +84,19 @@ class RowStore:
         self.path, self.key, self.meta = Path(path), key, meta
         self.rows: dict[int, dict[str, list[int]]] = {}
         self.blocks: set[tuple[int, int]] = set()
+        #: The file's content when it was made under another key (see :func:`adopt`).
+        self.foreign: dict[str, Any] | None = None
         if self.path.exists():
             data = json.loads(self.path.read_text())
             if data.get("key") == key:
-                self.rows = {int(q): v for q, v in data["rows"].items()}
-                self.blocks = {(int(a), int(b)) for a, b in data["blocks"]}
+                self.rows, self.blocks = _rows(data), _blocks(data)
+                if "adopted" in data:  # kept when the file is written again
+                    self.meta = dict(self.meta, adopted=data["adopted"])
             else:
+                self.foreign = data
                 print(
                     f"{self.path.name}: made by other code, options or order "
-                    f"(key {str(data.get('key'))[:12]}, now {key[:12]}): starting afresh",
+                    f"(key {str(data.get('key'))[:12]}, now {key[:12]})",
                     flush=True,
                 )
 
@@ -120,11 +127,115 @@ class RowStore:
                 return i
         return len(order)
 
+    def adopt_foreign(self, check: dict[str, Any]) -> None:
+        """Take the foreign file's rows as this key's, recording ``check`` (what was
+        recomputed and found identical) after the file's earlier adoptions."""
+        assert self.foreign is not None
+        self.rows, self.blocks = _rows(self.foreign), _blocks(self.foreign)
+        earlier = list(self.foreign.get("adopted", []))
+        self.meta = dict(self.meta, adopted=[*earlier, check])
+        self.foreign = None
+        self.save()
+
     def nn(self, queries: np.ndarray) -> np.ndarray:
         return np.array([self.rows[int(q)]["nn"] for q in queries], dtype=np.int64)
 
     def top(self, queries: np.ndarray) -> np.ndarray:
         return np.array([self.rows[int(q)]["top"] for q in queries], dtype=np.int64)
+
+
+def _rows(data: dict[str, Any]) -> dict[int, dict[str, list[int]]]:
+    return {int(q): v for q, v in data["rows"].items()}
+
+
+def _blocks(data: dict[str, Any]) -> set[tuple[int, int]]:
+    return {(int(a), int(b)) for a, b in data["blocks"]}
+
+
+def _summaries(
+    curves: list[np.ndarray],
+    cfg: MatchConfig,
+    positions: np.ndarray,
+    perm: np.ndarray,
+    labels: np.ndarray,
+    splits: list[np.ndarray],
+    **engine: Any,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The queries ``perm[positions]`` and their ``nn`` and ``top`` summaries, computed by
+    :func:`shapetree.retrieval.directed_costs` (``curves``: the set in the order ``perm``)."""
+    from shapetree.retrieval import directed_costs
+
+    arr = directed_costs([curves[p] for p in positions.tolist()], curves, cfg, **engine)
+    rows = arr.min(axis=0)[:, np.argsort(perm)]
+    queries = perm[positions]
+    return queries, split_nn(rows, queries, labels, splits), nearest_others(rows, queries)
+
+
+def adopt(
+    store: RowStore,
+    curves: list[np.ndarray],
+    cfg: MatchConfig,
+    perm: np.ndarray,
+    labels: np.ndarray,
+    splits: list[np.ndarray],
+    *,
+    check: int,
+    workers: int = 2,
+) -> bool:
+    """Adopt the rows of a file made under another key if the current code reproduces them.
+
+    ``check`` recorded queries, spread evenly over the run's recorded prefix (its first and
+    last row included), are recomputed with the current code and options; if every one's
+    ``nn`` (each split's nearest training leaf) and ``top`` (its 9 nearest leaves, in order)
+    equal the file's, the file's rows become the store's, under the current key, and the
+    file records the check (``adopted``: the old key, the queries checked, the date).
+    Otherwise nothing is adopted and the run starts afresh (the file is overwritten by
+    the first new block). Returns whether the rows were adopted; ``False`` at once when
+    the file was made under the current key or does not exist.
+
+    A sample cannot prove that no other row changed; it is meant for changes that leave
+    every cost alone by design (validation, speed), where one changed cost would show in
+    most rows' nearest leaves.
+    """
+    import datetime
+
+    if store.foreign is None:
+        return False
+    old = _rows(store.foreign)
+    done = 0
+    for q in perm.tolist():
+        if q not in old:
+            break
+        done += 1
+    if done == 0:
+        return False
+    positions = np.unique(np.linspace(0, done - 1, min(check, done)).round().astype(np.int64))
+    print(f"recomputing {positions.size} of the file's {done} rows to compare", flush=True)
+    queries, nn, top = _summaries(
+        curves, cfg, positions, perm, labels, splits, workers=workers, desc="rows to compare"
+    )
+    differ = [
+        int(q)
+        for q, a, b in zip(queries.tolist(), nn.tolist(), top.tolist(), strict=True)
+        if old[int(q)] != {"nn": a, "top": b}
+    ]
+    if differ:
+        print(
+            f"{len(differ)} of {queries.size} recomputed rows differ (queries {differ[:10]}): "
+            "not adopted, starting afresh",
+            flush=True,
+        )
+        return False
+    store.adopt_foreign(
+        {
+            "from_key": store.foreign.get("key"),
+            "checked_queries": queries.tolist(),
+            "identical": int(queries.size),
+            "date": datetime.date.today().isoformat(),
+        }
+    )
+    print(f"all {queries.size} recomputed rows identical: the file's {done} rows adopted")
+    return True
 
 
 def fill(
@@ -148,10 +259,7 @@ def fill(
     done. The outer bar counts rows, the inner one the chunk's pairs."""
     from tqdm.auto import tqdm
 
-    from shapetree.retrieval import directed_costs
-
     n = len(curves)
-    inv = np.argsort(perm)
     starts = [
         r0
         for r0 in range(0, upto, block)
@@ -169,19 +277,20 @@ def fill(
     with tqdm(total=todo, desc="rows to the store", unit="row", smoothing=0.1) as bar:
         for chunk in chunks:
             c0, c1 = chunk[0], min(n, chunk[-1] + block)
-            arr = directed_costs(
-                curves[c0:c1],
+            queries, nn, top = _summaries(
                 curves,
                 cfg,
+                np.arange(c0, c1),
+                perm,
+                labels,
+                splits,
                 workers=workers,
                 cache_dir=cache,
                 block=block,
                 desc=f"rows {c0}-{c1}",
             )
-            rows = arr.min(axis=0)[:, inv]
             for r0 in chunk:
                 r1 = min(n, r0 + block)
-                part, queries = rows[r0 - c0 : r1 - c0], perm[r0:r1]
-                nn = split_nn(part, queries, labels, splits)
-                store.add(r0, r1, queries, nn, nearest_others(part, queries))
+                part = slice(r0 - c0, r1 - c0)
+                store.add(r0, r1, queries[part], nn[part], top[part])
             bar.update(c1 - c0)

@@ -94,6 +94,8 @@ MPEG7_BLOCK = 32
 #: rows per cached block of the full Swedish-leaf run in query-sample order (28,125 pairs:
 #: about 7 min of both cores at the 65 pairs/s measured for n100 T1 dense)
 SWEDISH_BLOCK = 25
+#: rows recomputed before a row file made by other code is adopted (``_row_store.adopt``)
+ADOPT_CHECK = 20
 #: file-name prefix of the worst-query grids (``<prefix>_<set>_worst.png``)
 PNG_PREFIX = "beyond_paper"
 
@@ -531,7 +533,9 @@ def swedish_run(
     """Swedish leaf exhaustively, in an order whose first rows are a class-stratified query
     sample (every ``args.swedish_every``-th leaf of each class). Each finished block of
     ``SWEDISH_BLOCK`` rows is summarised in a committed file (:func:`swedish_store`), so
-    the run resumes across sessions and machines. With ``args.swedish_full`` every row is
+    the run resumes across sessions and machines; a file made by other code is adopted if
+    ``ADOPT_CHECK`` of its rows, recomputed, are identical (``_row_store.adopt``), else the
+    run starts afresh. With ``args.swedish_full`` every row is
     computed and the score is the protocol's; else the score is the estimate from the
     largest recorded prefix made of whole stratified groups (the first group is computed
     when missing). ``reference`` (label, configuration, its full score): without the full
@@ -547,6 +551,7 @@ def swedish_run(
     n = len(curves)
     store = swedish_store(cfg, curves, args.swedish_every)
     splits = swedish_splits(labels)
+    _row_store.adopt(store, curves, cfg, perm, labels, splits, check=ADOPT_CHECK)
     t0 = time.perf_counter()
     upto = n if args.swedish_full else max(ends[0], store.prefix(perm))
     _row_store.fill(store, curves, cfg, cache, perm, labels, splits, upto=upto, block=SWEDISH_BLOCK)

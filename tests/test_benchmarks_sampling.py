@@ -153,3 +153,39 @@ def test_row_store_fill_matches_the_engine(tmp_path: Path) -> None:
     assert fresh.prefix(perm) == 6 and fresh.blocks == {(0, 2), (2, 4), (4, 6)}
     np.testing.assert_array_equal(fresh.nn(perm), row_store.split_nn(C[perm], perm, labels, splits))
     assert len(list((tmp_path / "other_cache").glob("*/*.blk"))) == 1  # rows 4-6 only
+
+
+def test_row_store_adopts_a_foreign_file_only_when_rows_are_reproduced(tmp_path: Path) -> None:
+    from shapetree.matching import MatchConfig
+
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    curves = [
+        np.c_[(1 + a * np.cos(k * t)) * np.cos(t), (1 + a * np.cos(k * t)) * np.sin(t)]
+        for k, a in [(2, 0.1), (2, 0.2), (3, 0.1), (3, 0.25), (4, 0.15), (4, 0.3)]
+    ]
+    labels = np.array(["b", "b", "c", "c", "d", "d"])
+    cfg = MatchConfig(n_points=12, n_trees=1, mirror=False, phases=1, symmetrize="none")
+    perm = np.array([0, 2, 4, 1, 3, 5])
+    ordered = [curves[i] for i in perm]
+    splits = [np.array([1, 0, 1, 0, 0, 1], bool), np.array([0, 1, 0, 1, 1, 0], bool)]
+    path = tmp_path / "rows.json"
+    old = row_store.RowStore(path, "old-code", {"what": "test"})
+    row_store.fill(old, ordered, cfg, tmp_path / "c", perm, labels, splits, upto=6, block=2)
+    rows = dict(old.rows)
+
+    new = row_store.RowStore(path, "new-code", {"what": "test"})
+    assert new.rows == {} and new.foreign is not None
+    assert row_store.adopt(new, ordered, cfg, perm, labels, splits, check=3, workers=1)
+    assert new.rows == rows and new.blocks == {(0, 2), (2, 4), (4, 6)}
+    (record,) = new.meta["adopted"]
+    assert record["from_key"] == "old-code" and record["identical"] == 3
+    assert record["checked_queries"] == [0, 4, 5]  # first, middle and last of the order
+    again = row_store.RowStore(path, "new-code", {"what": "test"})  # read back as its own
+    assert again.rows == rows and again.meta["adopted"] == [record]
+    assert not row_store.adopt(again, ordered, cfg, perm, labels, splits, check=3, workers=1)
+
+    # one row that the current code does not reproduce: nothing is adopted
+    store = row_store.RowStore(path, "newer", {})
+    store.foreign["rows"]["4"] = {"nn": rows[4]["nn"], "top": rows[4]["top"][::-1]}
+    assert not row_store.adopt(store, ordered, cfg, perm, labels, splits, check=6, workers=1)
+    assert store.rows == {} and store.foreign is not None
