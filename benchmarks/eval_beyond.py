@@ -557,6 +557,8 @@ def swedish_run(
     _row_store.fill(store, curves, cfg, cache, perm, labels, splits, upto=upto, block=SWEDISH_BLOCK)
     rec["seconds_matrix"] = round(time.perf_counter() - t0, 1)
     rec["rows_file"] = store.path.name
+    if store.meta.get("adopted"):  # rows computed by earlier code, checked (_row_store.adopt)
+        rec["rows_adopted"] = store.meta["adopted"]
     done = store.prefix(perm)
     full = done == n
     nq = n if full else max(e for e in ends if e <= done)

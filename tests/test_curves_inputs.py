@@ -24,7 +24,15 @@ from shapetree.matching import match, prepare_model, prepare_target
 from shapetree.retrieval import distance_matrix
 from shapetree.tree import build_shape_tree
 
-ACCEPTED = ["(n, 2)", "(n, 1, 2)", "LineString", "LinearRing", "Polygon", "__geo_interface__"]
+ACCEPTED = [
+    "(n, 2)",
+    "x + iy",
+    "(n, 1, 2)",
+    "LineString",
+    "LinearRing",
+    "Polygon",
+    "__geo_interface__",
+]
 
 
 def _blob(n: int = 40, cx: float = 50.0, cy: float = 40.0) -> np.ndarray:
@@ -121,6 +129,49 @@ def test_a_list_of_contours_is_refused_with_a_hint() -> None:
     for contours in [(c,), [c, c], [c, c[:10]]]:  # what findContours returns: a sequence
         with pytest.raises(CurveError, match="list of OpenCV contours: pass one of them"):
             as_curve(contours, closed=True)
+
+
+def test_a_row_of_x_and_a_row_of_y_gets_a_transpose_hint() -> None:
+    with pytest.raises(CurveError, match=r"shape \(2, 40\).*pass its transpose"):
+        as_curve(_blob().T, closed=True)
+
+
+# ---------------------------------------------------------------- complex numbers x + iy
+
+
+def test_a_complex_vector_is_the_curve_x_plus_iy() -> None:
+    a, b = _blob().astype(float), _blob(36, 10.0, -5.0).astype(float)
+    za, zb = a[:, 0] + 1j * a[:, 1], b[:, 0] + 1j * b[:, 1]
+    np.testing.assert_array_equal(as_curve(za, closed=True), a)
+    np.testing.assert_array_equal(as_curve(list(za), closed=True), a)  # a list of complex
+    assert match(za, zb).cost == match(a, b).cost > 0
+    np.testing.assert_array_equal(
+        build_shape_tree(za, closed=True).coords, build_shape_tree(a, closed=True).coords
+    )
+    assert curve_length(za, closed=True) == curve_length(a, closed=True)
+
+
+def test_complex_pairs_are_refused_not_truncated() -> None:
+    a = _blob().astype(float)
+    z = a + 0.5j  # (n, 2) complex: dropping the imaginary part would be a silent wrong answer
+    with pytest.raises(CurveError, match=r"complex coordinates in an array of shape \(40, 2\)"):
+        match(z, a)
+    with pytest.raises(CurveError, match="complex"):
+        as_curve(z, closed=True, name="z")
+    # an imaginary part that is exactly zero loses nothing
+    np.testing.assert_array_equal(as_curve(a + 0j, closed=True), a)
+
+
+def test_distinct_points_are_counted_anywhere_on_the_curve() -> None:
+    back_and_forth = np.array([[0.0, 0.0], [1.0, 2.0], [0.0, 0.0], [1.0, 2.0]])
+    with pytest.raises(CurveError, match=r"fewer than 3 distinct points \(2\)"):
+        as_curve(back_and_forth, closed=False)
+    assert as_curve(back_and_forth, closed=False, min_points=2).shape == (4, 2)
+    signed_zero = np.array([[0.0, 1.0], [-0.0, 1.0], [0.0, 1.0], [2.0, 3.0], [4.0, 0.0]])
+    with pytest.raises(CurveError, match=r"fewer than 4 distinct points \(3\)"):
+        as_curve(signed_zero, closed=True, min_points=4)  # -0.0 and 0.0 are one coordinate
+    with pytest.raises(CurveError, match="zero length"):
+        as_curve(np.ones((5, 2)) * [3.0, -1.0], closed=True)
 
 
 # ---------------------------------------------------------------- geo interface, NumPy only
