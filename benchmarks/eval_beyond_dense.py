@@ -221,6 +221,11 @@ def score_no_limit(args: argparse.Namespace, cache: Path, argv: list[str] | None
         rec["in_sample"] = base.in_sample(target)
         rec["seconds_this_run"] = round(time.perf_counter() - t0, 1)
         rec["machine"] = machine()
+        if "rows_adopted" in rec:  # this run only checked them: keep who computed the rows
+            prev = done.get(target, {})
+            rec["rows_computed_by"] = prev.get("rows_computed_by") or {
+                k: prev[k] for k in ("seconds_matrix", "seconds_this_run", "machine") if k in prev
+            }
         done[target] = rec
         write_json(out_path, out)
         print(f"{target}: {rec.get('score')} ({rec.get('scored_on')})", flush=True)

@@ -255,6 +255,11 @@ def test_load_points_text(tmp_path, name, text):
 def test_load_points_npy_and_json(tmp_path):
     np.save(tmp_path / "s.npy", SQUARE)
     np.testing.assert_array_equal(load_points(tmp_path / "s.npy"), SQUARE)
+    np.save(tmp_path / "z.npy", SQUARE[:, 0] + 1j * SQUARE[:, 1])  # points x + iy
+    np.testing.assert_array_equal(load_points(tmp_path / "z.npy"), SQUARE)
+    np.save(tmp_path / "zz.npy", SQUARE + 1j)
+    with pytest.raises(CurveError, match="complex coordinates"):
+        load_points(tmp_path / "zz.npy")
     (tmp_path / "l.json").write_text(json.dumps(SQUARE.tolist()))
     np.testing.assert_array_equal(load_points(tmp_path / "l.json"), SQUARE)
     (tmp_path / "o.json").write_text(json.dumps({"points": SQUARE.tolist(), "closed": True}))

@@ -64,8 +64,11 @@ def _read_npy(path: Path) -> np.ndarray:
         data = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError) as exc:
         raise CurveError(f"{path}: unreadable .npy file ({exc})") from None
-    if not isinstance(data, np.ndarray) or data.dtype.kind not in "iuf":
-        raise CurveError(f"{path}: expected a numeric (n, 2) or (n, 1, 2) array in the .npy file")
+    if not isinstance(data, np.ndarray) or data.dtype.kind not in "iufc":
+        raise CurveError(
+            f"{path}: expected a numeric (n, 2) or (n, 1, 2) array, or a 1-D complex array "
+            "x + iy, in the .npy file"
+        )
     return data
 
 
@@ -118,8 +121,8 @@ def load_points(path: str | os.PathLike) -> np.ndarray:
 
     Formats (by extension):
 
-    * ``.npy``: a numeric array of shape ``(n, 2)``, or an OpenCV contour saved as it is,
-      ``(n, 1, 2)``.
+    * ``.npy``: a numeric array of shape ``(n, 2)``, an OpenCV contour saved as it is,
+      ``(n, 1, 2)``, or a 1-D complex array of points ``x + iy``.
     * ``.json``: a list of ``[x, y]`` pairs, or an object ``{"points": [[x, y], ...]}`` (an
       optional ``"closed": true|false`` key is used by :func:`load_curve`).
     * anything else (``.csv``, ``.txt``, ...): text, two numbers per line separated by commas,
