@@ -90,3 +90,33 @@ def test_agreement_terms(tmp_path: Path) -> None:
     assert out["agree_top"].tolist() == pytest.approx([1.0, 0.0, 0.0])
     # IoU 0.5 is not > 0.5: no overlapping box, so -1; the best itself: margin 0
     assert out["agree_score"].tolist() == pytest.approx([0.0, -1.0, -1.0])
+
+
+def test_tree_mean_candidates_join_the_held_out_rule() -> None:
+    tc = pytest.importorskip("eval_tree_combine")
+    base = tc.base
+    cands = base.candidates() | tc.new_candidates()
+    assert len(cands) == 18
+    assert {c.tree_combine for k, c in cands.items() if k.endswith(" tmean")} == {"mean"}
+    # original scores: every candidate 1.0 on every set; the added ones: "n64 T3 none tmean"
+    # wins on Swedish leaf and MPEG-7, loses on Kimia-99
+    orig = {n: {k: 1.0 for k in base.candidates()} for n in base.TARGETS}
+    new = {n: {k: 0.0 for k in tc.new_candidates()} for n in base.TARGETS}
+    for n in ("swedish_leaf", "mpeg7"):
+        new[n]["n64 T3 none tmean"] = 2.0
+    timing = {
+        f"{n} n{p} T{t}": 1e-4 * p * t for n in base.TARGETS for p in (64, 100) for t in (1, 3)
+    }
+    scores = tc.selection_scores(orig, new, timing, cands)
+    # a mean of trees costs what its family costs per pair
+    assert scores["mpeg7"]["n100 T3 mean tmean"]["s_per_pair"] == timing["mpeg7 n100 T3"]
+    choices = tc.held_out_choices(scores, cands, {"mpeg7": 1e12, "swedish_leaf": 1e12})
+    assert choices["kimia99"]["chosen"] == "n64 T3 none tmean"  # chosen without Kimia-99
+    assert choices["mpeg7"]["chosen"] != "n64 T3 none tmean"  # it loses on Kimia-99
+    # a budget that only the one-tree n = 64 runs fit
+    tight = {"mpeg7": 1e-4 * 64 * 1400**2 * 1.01, "swedish_leaf": 1e12}
+    assert "tmean" not in tc.held_out_choices(scores, cands, tight)["mpeg7"]["chosen"]
+    effect = tc.paired_effect(
+        orig, {n: {k: {"score": v} for k, v in d.items()} for n, d in new.items()}
+    )
+    assert effect["mpeg7"]["n64 T3 none"] == [1.0, 2.0]

@@ -2,7 +2,8 @@
 
 ``BoundStack.bounds`` must be ``<=`` ``ModelStack.costs`` (zero tolerance: the bound's own
 slack covers float32 rounding) on thousands of random closed curves, under every kernel
-option (occlusion, band, segment weight, several trees, length power, both precisions)
+option (occlusion, band, segment weight, several trees combined by their minimum or mean,
+length power, both precisions)
 and every choice of kept levels; keeping every node gives the cost itself; keeping more
 levels never loosens it; on real shapes (Kimia-99) ``lower_bounds`` is ``<=`` the
 distances ``distance_matrix`` gives, for every preset and ``symmetrize``.
@@ -33,11 +34,12 @@ def _random_case(rng: np.random.Generator):
     m = int(rng.integers(6, 26))
     a, b = blob(n, rng), blob(m, rng)
     power = float(rng.choice([1.0, 1.5]))
-    n_trees = int(rng.integers(1, 3))
+    n_trees = int(rng.integers(1, 4))
     params = MatchParams(
         occlusion=[None, 0.3, 2.0][int(rng.integers(3))],
         band=[None, 1.5, 3.0][int(rng.integers(3))],
         segment_weight=float(rng.choice([1.0, 0.0, 0.5])),
+        tree_combine=str(rng.choice(["min", "mean"])),
     )
     dtype = [np.float64, np.float32][int(rng.integers(2))]
     model = prepare_model(a, n_trees=n_trees, length_power=power, weight=float(rng.uniform(0.5, 2)))
@@ -150,6 +152,8 @@ def kimia():
         ("mpeg7", {"symmetrize": "mean"}),
         ("paper", {"symmetrize": "max", "band": 2.0}),
         ("general", {"symmetrize": "reverse", "n_trees": 2}),
+        ("kimia99", {"tree_combine": "mean"}),
+        ("mpeg7", {"tree_combine": "mean", "symmetrize": "min"}),
     ],
 )
 def test_bound_never_above_distance_on_kimia99(kimia, preset, options):

@@ -147,7 +147,7 @@ def test_match_options_are_passed_through(capsys, files):
     opts = dict(n_points=30, weight=2.0, n_trees=2, split="best", occlusion=0.3)
     res = match(pa, pb, mirror=False, band=None, **opts)
     assert printed_cost(out) == pytest.approx(res.cost, rel=1e-10, abs=1e-14)
-    assert "best shape-tree: #" in out
+    assert "shape-trees: cost is the best 2" in out and "correspondence from the cheapest, #" in out
     code, out, _ = run(capsys, "match", a, b, "--n-points", 20, "--open")
     pa, _ = load_curve(a, closed=False)
     pb, _ = load_curve(b, closed=False)

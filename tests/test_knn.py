@@ -47,6 +47,7 @@ def _exhaustive(queries, database, preset, k, **options):
         ("mpeg7", {"n_points": 16, "symmetrize": "mean", "phases": 1}, 4),
         ("paper", {"n_points": 16, "symmetrize": "max"}, 6),
         ("general", {"n_points": 16, "symmetrize": "reverse"}, 6),
+        ("kimia99", {"n_points": 16, "tree_combine": "mean"}, 8),
     ],
 )
 def test_knn_equals_exhaustive_search_on_kimia99(kimia, preset, options, k):

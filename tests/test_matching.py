@@ -22,11 +22,14 @@ from shapetree.matching import (
     prepare_target,
     subcurve_table,
 )
+from shapetree.matching._batch import ModelStack
+from shapetree.matching._prepare import tree_variants
 from shapetree.matching._reference import (
     reference_correspondence,
     reference_match_cost,
     reference_subcurve_table,
 )
+from shapetree.retrieval import distance_matrix
 from shapetree.tree import build_shape_tree, deform
 
 #: match() as the oracle defines it: the points as given, one shape-tree, no mirror, no
@@ -240,6 +243,55 @@ def test_several_trees_take_the_best():
     assert res.cost <= match(a, b, EXACT).cost + 1e-12
     # trees are really different: a tree started half-way round would repeat the first
     assert len(set(np.round(res.costs, 12))) == 4
+
+
+@pytest.mark.parametrize("occlusion", [None, 0.4])
+def test_tree_combine_mean_is_the_mean_of_the_oracle_tree_costs(occlusion):
+    rng = np.random.default_rng(_seed("tree-mean", occlusion))
+    a, b = blob(14, rng), blob(13, rng)
+    cfg = EXACT.replace(n_trees=3, occlusion=occlusion)
+    best, mean = match(a, b, cfg), match(a, b, cfg.replace(tree_combine="mean"))
+    np.testing.assert_array_equal(best.costs, mean.costs)  # the same three trees
+    for t, kw in enumerate(tree_variants(14, True, 3, "half")):  # each one is the oracle's
+        tree = build_shape_tree(a, closed=True, **kw)
+        want = reference_match_cost(tree, b, occlusion=occlusion)
+        assert mean.costs[t] == pytest.approx(want, rel=1e-9, abs=1e-12)
+    assert best.cost == pytest.approx(best.costs.min(), rel=1e-12)
+    assert mean.cost == pytest.approx(best.costs.mean(), rel=1e-12)
+    assert mean.cost > best.cost  # the trees differ, so the mean is above the best
+    # the drawn correspondence is the cheapest tree's either way
+    assert mean.tree_index == best.tree_index == int(np.argmin(best.costs))
+    np.testing.assert_array_equal(mean.a_to_b, best.a_to_b)
+    # one tree: nothing to combine
+    one = EXACT.replace(occlusion=occlusion)
+    assert match(a, b, one.replace(tree_combine="mean")).cost == match(a, b, one).cost
+
+
+def test_tree_combine_mean_in_every_cost_path():
+    rng = np.random.default_rng(_seed("tree-mean-paths"))
+    curves = [blob(20, rng) for _ in range(4)]
+    cfg = PRESETS["general"].replace(n_points=16, n_trees=3, tree_combine="mean", phases=2)
+    D = distance_matrix(curves, config=cfg, progress=False)
+    for i in range(4):
+        for j in range(4):
+            assert D[i, j] == pytest.approx(match(curves[i], curves[j], cfg).cost, rel=1e-6)
+    # the kernel level: a stack of models against one target equals one by one
+    params = MatchParams(band=3.0, tree_combine="mean")
+    models = [prepare_model(c, n_trees=3) for c in curves]
+    target = prepare_target(curves[0])
+    stacked = ModelStack(models, 20, params).costs(target)
+    single = [match_cost(mod, target, params) for mod in models]
+    np.testing.assert_allclose(stacked, single, rtol=1e-12)
+    assert np.all(stacked >= ModelStack(models, 20, MatchParams(band=3.0)).costs(target))
+
+
+def test_tree_combine_is_validated():
+    with pytest.raises(ShapeTreeError, match="tree_combine must be one of"):
+        PRESETS["general"].replace(tree_combine="max")
+    with pytest.raises(ShapeTreeError, match="tree_combine='mean' is an option of the shape-tree"):
+        PRESETS["general"].replace(tree_combine="mean", matcher="symmetric")
+    with pytest.raises(ShapeTreeError, match="tree_combine must be 'min' or 'mean'"):
+        MatchParams(tree_combine="median")
 
 
 def test_occlusion_replaces_a_missing_part():

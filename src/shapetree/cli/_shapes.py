@@ -65,7 +65,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "match",
         help="match two shapes and print the deformation cost",
         description="Deform shape A onto shape B with the least shape-tree deformation "
-        "(paper section 3) and print the cost, the best shape-tree and any replaced parts.",
+        "(paper section 3) and print the cost, the shape-trees' costs and any replaced parts.",
         epilog=MATCH_EPILOG,
         formatter_class=Formatter,
     )
@@ -197,7 +197,11 @@ def cmd_match(args: argparse.Namespace) -> int:
         info(f"  psi(A, B) = {res.forward_cost:.12g}, psi(B, A) = {back} ({config.symmetrize})")
     if config.n_trees > 1:
         costs = ", ".join(f"{c:.6g}" for c in res.costs)
-        info(f"best shape-tree: #{res.tree_index} of {config.n_trees} (costs: {costs})")
+        rule = "the best" if config.tree_combine == "min" else "the mean of"
+        info(
+            f"shape-trees: cost is {rule} {config.n_trees} (costs: {costs}); "
+            f"correspondence from the cheapest, #{res.tree_index}"
+        )
     if res.mirrored:
         info("the mirrored A matched best")
     if res.replaced:

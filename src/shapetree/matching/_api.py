@@ -139,6 +139,7 @@ def kernel_params(config: MatchConfig) -> MatchParams:
         band=config.band,
         segment_weight=config.segment_weight,
         dif=config.dif,
+        tree_combine=config.tree_combine,
     )
 
 

@@ -109,7 +109,8 @@ class ModelStack:
         return _buffers(self._n_tables, self.m, self.dtype)
 
     def costs(self, target: Target) -> np.ndarray:
-        """ψ(model_i, target) for every model (minimum over its shape-trees).
+        """ψ(model_i, target) for every model (its shape-trees combined by
+        ``params.combine_trees``: the minimum, or the mean).
 
         Parameters
         ----------
@@ -134,5 +135,5 @@ class ModelStack:
             out,
             self.params.hyper,
         )
-        best = out.reshape(self.n_models, self.n_trees).min(axis=1).astype(np.float64)
-        return np.maximum(finite_or_inf(best), 0.0)  # inf: no admissible matching
+        best = self.params.combine_trees(finite_or_inf(out.reshape(self.n_models, self.n_trees)))
+        return np.maximum(best, 0.0)  # inf: no admissible matching

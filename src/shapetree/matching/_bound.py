@@ -360,7 +360,8 @@ class BoundStack(ModelStack):
         self._marks = np.ascontiguousarray(marks)
 
     def bounds(self, target: Target) -> np.ndarray:
-        """A lower bound of ψ(model_i, target) for every model (minimum over its trees),
+        """A lower bound of ψ(model_i, target) for every model (its trees combined as in
+        :meth:`costs`),
         lowered by :data:`BOUND_SLACK`; shape (n_models,), float64."""
         tab = self._table_workspace(target)
         out = np.empty(self.n_models * self.n_trees, dtype=self.dtype)
@@ -377,5 +378,6 @@ class BoundStack(ModelStack):
             out,
             self.params.hyper,
         )
-        best = out.reshape(self.n_models, self.n_trees).min(axis=1).astype(np.float64)
-        return np.maximum(finite_or_inf(best) * (1.0 - BOUND_SLACK), 0.0)
+        # per tree, bound <= cost; so also for their minimum or mean
+        best = self.params.combine_trees(finite_or_inf(out.reshape(self.n_models, self.n_trees)))
+        return np.maximum(best * (1.0 - BOUND_SLACK), 0.0)

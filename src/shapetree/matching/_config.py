@@ -34,6 +34,9 @@ DIFS = ("procrustes", "hyperbolic")
 #: Accepted ``matcher`` values.
 MATCHERS = ("directed", "symmetric")
 
+#: Accepted ``tree_combine`` values (how the costs of a model's shape-trees combine).
+TREE_COMBINE = ("min", "mean")
+
 
 def _is_int(v: Any) -> bool:
     return isinstance(v, int | np.integer) and not isinstance(v, bool)
@@ -70,6 +73,14 @@ class MatchConfig:
         Shape-trees of the model tried (different start points); the best is kept (§3:
         "we usually compute matchings using 2 to 4 different shape-trees"). An open curve
         has at most two (its ends are fixed: one tree per midpoint rule).
+    tree_combine : {"min", "mean"}
+        How the costs of the ``n_trees`` shape-trees combine into ψ: ``"min"``, the best
+        tree (the paper: "pick the best one"), or ``"mean"``, their average (not in the
+        paper: every tree is a different hierarchy of the same model, and the average
+        lets no single tree's lucky decomposition decide). Matters only with
+        ``n_trees > 1``; the correspondence :func:`~shapetree.matching.match` returns
+        is the cheapest tree's either way. The shape-tree kernel only
+        (``matcher="directed"``, no ``replace_any``).
     split : {"half", "best"}
         Midpoint rule of the shape-trees (§2).
     mirror : bool
@@ -126,6 +137,7 @@ class MatchConfig:
     length_power: float = 1.5
     occlusion: float | None = None
     n_trees: int = 1
+    tree_combine: str = "min"
     split: str = "half"
     mirror: bool = True
     band: float | None = 3.0
@@ -153,6 +165,10 @@ class MatchConfig:
             raise ShapeTreeError(f"occlusion must be a positive number or None, got {occ!r}")
         if not (_is_int(self.n_trees) and self.n_trees >= 1):
             raise ShapeTreeError(f"n_trees must be an integer >= 1, got {self.n_trees!r}")
+        if self.tree_combine not in TREE_COMBINE:
+            raise ShapeTreeError(
+                f"tree_combine must be one of {TREE_COMBINE}, got {self.tree_combine!r}"
+            )
         if self.split not in SPLIT_RULES:
             raise ShapeTreeError(f"split must be one of {SPLIT_RULES}, got {self.split!r}")
         if not isinstance(self.mirror, bool | np.bool_):
@@ -212,6 +228,11 @@ class MatchConfig:
                 raise ShapeTreeError(
                     f"replace_any=True needs split='half' (got split={self.split!r})"
                 )
+        if self.tree_combine != "min" and (self.matcher != "directed" or self.replace_any):
+            raise ShapeTreeError(
+                f"tree_combine={self.tree_combine!r} is an option of the shape-tree kernel; "
+                "the pair matchers (matcher='symmetric', replace_any=True) keep the best tree"
+            )
         # canonical types, so equal configurations hash and serialise alike
         fix = object.__setattr__
         fix(self, "n_points", None if n is None else int(n))
@@ -347,7 +368,13 @@ OPTIONS: dict[str, dict[str, Any]] = {
     "n_trees": {
         "metavar": "T",
         "type": int,
-        "help": "shape-trees of the model tried (different start points), best kept",
+        "help": "shape-trees of the model tried (different start points); see --tree-combine",
+    },
+    "tree_combine": {
+        "type": str,
+        "choices": list(TREE_COMBINE),
+        "help": "how the shape-trees' costs combine: min = the best tree (the paper), "
+        "mean = their average (not in the paper)",
     },
     "split": {
         "type": str,
@@ -430,6 +457,7 @@ PRESETS: dict[str, MatchConfig] = {
         length_power=1.0,
         occlusion=None,
         n_trees=1,
+        tree_combine="min",
         mirror=False,
         band=None,
         phases=1,
@@ -447,6 +475,7 @@ PRESETS: dict[str, MatchConfig] = {
         length_power=1.0,
         occlusion=None,
         n_trees=3,
+        tree_combine="min",
         mirror=True,
         band=4.0,
         phases=4,
@@ -462,6 +491,7 @@ PRESETS: dict[str, MatchConfig] = {
         length_power=1.0,
         occlusion=2.0,
         n_trees=3,
+        tree_combine="min",
         mirror=True,
         band=3.0,
         phases=2,
@@ -477,6 +507,7 @@ PRESETS: dict[str, MatchConfig] = {
         length_power=1.5,
         occlusion=None,
         n_trees=1,
+        tree_combine="min",
         mirror=True,
         band=2.0,
         phases=1,
@@ -501,6 +532,7 @@ __all__ = [
     "PRECISIONS",
     "PRESETS",
     "SYMMETRIZE",
+    "TREE_COMBINE",
     "MatchConfig",
     "resolve_config",
 ]

@@ -49,12 +49,16 @@ class MatchParams:
     dif : {"procrustes", "hyperbolic"}
         The triangle dissimilarity (``MatchConfig.dif``); models must be prepared with the
         same (:func:`prepare_model`), targets carry the base-case tables of both.
+    tree_combine : {"min", "mean"}
+        How the costs of a model's shape-trees combine (``MatchConfig.tree_combine``): the
+        best tree (the paper) or their mean.
     """
 
     occlusion: float | None = None
     band: float | None = None
     segment_weight: float = 1.0
     dif: str = "procrustes"
+    tree_combine: str = "min"
 
     def __post_init__(self) -> None:
         occ = self.occlusion
@@ -69,6 +73,8 @@ class MatchParams:
             raise ShapeTreeError(f"segment_weight must be a number >= 0, got {sw!r}")
         if self.dif not in ("procrustes", "hyperbolic"):
             raise ShapeTreeError(f"dif must be 'procrustes' or 'hyperbolic', got {self.dif!r}")
+        if self.tree_combine not in ("min", "mean"):
+            raise ShapeTreeError(f"tree_combine must be 'min' or 'mean', got {self.tree_combine!r}")
 
     @property
     def hyper(self) -> bool:
@@ -79,6 +85,13 @@ class MatchParams:
     def kernel_occlusion(self) -> float:
         return -1.0 if self.occlusion is None else float(self.occlusion)
 
+    def combine_trees(self, costs: np.ndarray) -> np.ndarray:
+        """ψ from the costs of each shape-tree along the last axis: their minimum
+        (``tree_combine="min"``) or mean. ``inf`` (no admissible matching with a tree)
+        stays ``inf`` under the mean."""
+        costs = np.asarray(costs, dtype=np.float64)
+        return costs.min(axis=-1) if self.tree_combine == "min" else costs.mean(axis=-1)
+
 
 @dataclass
 class MatchResult:
@@ -87,7 +100,8 @@ class MatchResult:
     Attributes
     ----------
     cost : float
-        ψ(A, B) (minimum over the shape-trees tried).
+        ψ(A, B) (over the shape-trees tried: the minimum, or their mean with
+        ``tree_combine="mean"``).
     a, b : ndarray, shape (n, 2) and (m, 2)
         The matched sample points.
     closed : bool
@@ -101,7 +115,8 @@ class MatchResult:
         ``(a_start, a_end, b_start, b_end)`` index ranges (modulo n, m when closed) of
         subcurves that were replaced rather than deformed (occlusion).
     tree_index : int
-        Which of the model's shape-trees gave the best cost.
+        Which of the model's shape-trees gave the cheapest cost (the correspondence is
+        that tree's, also when ``cost`` is the mean over the trees).
     costs : ndarray, shape (n_trees,)
         Cost with each shape-tree.
     mirrored : bool
@@ -390,12 +405,13 @@ def match_prepared(
     assert best is not None
     cost, t, tab, s0, l1 = best
     n, m = model.points.shape[0], target.n_points
-    if correspondence and np.isfinite(cost):  # no admissible matching: no correspondence
+    # no admissible matching: no correspondence; else the cheapest tree's
+    if correspondence and np.isfinite(cost):
         a_to_b, b_to_a, replaced = _traceback(model.trees[t], target, params, tab, s0, l1, n)
     else:
         a_to_b, b_to_a, replaced = np.full(n, np.nan), np.full(m, np.nan), []
     return MatchResult(
-        cost=max(float(cost), 0.0),
+        cost=max(float(params.combine_trees(costs)), 0.0),
         a=model.points,
         b=target.points,
         closed=model.closed,
@@ -433,11 +449,12 @@ def match_cost(model: Model, target: Target, params: MatchParams | None = None) 
     """
     params = params or MatchParams()
     _check_pair(model, target, params)
-    best = np.inf
-    for td in model.trees:
+    costs = np.empty(len(model.trees))
+    for t, td in enumerate(model.trees):
         tab = _fill(td, target, params, reuse=True)
-        best = min(best, _root_cost(td, tab, model.closed, params.band)[0])
-    return max(float(best), 0.0)  # a sum of difs >= 0; round-off can leave -1e-17
+        costs[t] = _root_cost(td, tab, model.closed, params.band)[0]
+    # a sum of difs >= 0; round-off can leave -1e-17
+    return max(float(params.combine_trees(costs)), 0.0)
 
 
 def subcurve_table(

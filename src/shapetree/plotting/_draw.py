@@ -238,7 +238,7 @@ def plot_match(
         title = f"ψ({labels[0]}, {labels[1]}) = {result.cost:.4g}"
         costs = np.asarray(getattr(result, "costs", np.zeros(0)))
         if costs.size > 1:
-            title += f"   (best of {costs.size} shape-trees: #{result.tree_index})"
+            title += f"   (drawn with shape-tree #{result.tree_index} of {costs.size})"
         if parts:
             title += f"   ({len(parts)} part{'s' if len(parts) > 1 else ''} replaced)"
     ax.set_title(title, fontsize=12)
