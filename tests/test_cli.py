@@ -148,6 +148,12 @@ def test_match_options_are_passed_through(capsys, files):
     res = match(pa, pb, mirror=False, band=None, **opts)
     assert printed_cost(out) == pytest.approx(res.cost, rel=1e-10, abs=1e-14)
     assert "shape-trees: cost is the best 2" in out and "correspondence from the cheapest, #" in out
+    code, out, _ = run(
+        capsys, "match", a, b, "--n-points", 30, "--n-trees", 3, "--tree-combine", "mean"
+    )
+    assert code == 0 and "shape-trees: cost is the mean of 3" in out
+    res = match(pa, pb, n_points=30, n_trees=3, tree_combine="mean")
+    assert printed_cost(out) == pytest.approx(res.cost, rel=1e-10)
     code, out, _ = run(capsys, "match", a, b, "--n-points", 20, "--open")
     pa, _ = load_curve(a, closed=False)
     pb, _ = load_curve(b, closed=False)
