@@ -120,3 +120,23 @@ def test_tree_mean_candidates_join_the_held_out_rule() -> None:
         orig, {n: {k: {"score": v} for k, v in d.items()} for n, d in new.items()}
     )
     assert effect["mpeg7"]["n64 T3 none"] == [1.0, 2.0]
+
+
+def test_band_candidates_take_their_own_table_and_time() -> None:
+    eb = pytest.importorskip("eval_band_tree_mean")
+    added = eb.band_candidates()
+    assert len(added) == 6
+    assert {c.band for c in added.values()} == {5.0}
+    assert {c.tree_combine for c in added.values()} == {"mean"}
+    assert eb.family("n100 T3 min tmean b5") == "n100 T3 tmean b5"
+    assert eb.family("n100 T3 min tmean") == "n100 T3"
+    assert eb.family("n64 T1 none") == "n64 T1"
+    earlier = {
+        n: {"n64 T3 none": {"score": 1.0, "s_per_pair": 1e-3}}
+        for n in ("mpeg7", "kimia99", "swedish_leaf")
+    }
+    new = {"mpeg7": {"n64 T3 none tmean b5": {"score": 2.0}}}
+    pool = eb.pool_scores(earlier, new, {"mpeg7 n64 T3 tmean b5": 3e-3})
+    assert pool["mpeg7"]["n64 T3 none tmean b5"] == {"score": 2.0, "s_per_pair": 3e-3}
+    assert "n64 T3 none tmean b5" not in pool["kimia99"]  # not seen before Kimia's choice
+    assert earlier["mpeg7"] == {"n64 T3 none": {"score": 1.0, "s_per_pair": 1e-3}}  # not changed
