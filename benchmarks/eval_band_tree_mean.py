@@ -185,6 +185,13 @@ def main(argv: list[str] | None = None) -> int:
             )
         added[name], t = band_tables(name, cache)
         timing.update(t)
+        unknown = sorted({f"{name} {family(k)}" for k in added[name]} - set(timing))
+        if unknown:  # a candidate without a time per pair would silently leave the pool
+            raise SystemExit(
+                f"the seconds per pair of {', '.join(unknown)} are unknown: the tables were "
+                f"read from {cache} and {args.json} holds no timing of theirs; rerun with an "
+                "empty --cache-dir or with the JSON of the run that computed them"
+            )
     scores = pool_scores(earlier, added, timing)
     for name in ("mpeg7", "swedish_leaf"):
         choices[name] = base.choose(name, scores, cands, budgets[name])
@@ -229,16 +236,8 @@ def main(argv: list[str] | None = None) -> int:
         "machine": machine(),
     }
     write_json(Path(args.json), out)
-    print(f"\n{'target':13s} {'held-out choice (24)':24s} {'no time limit':24s} subset score")
-    for t, c in choices.items():
-        print(
-            f"{t:13s} {c['chosen']:24s} {c['no_time_limit_choice']:24s} "
-            f"{scores[t][c['chosen']]['score']}"
-        )
-    print("band 3 -> band 5 (mean of trees), on each selection subset:")
-    for name, d in out["band3_vs_band5_on_each_subset"].items():
-        for k, (a, b) in d.items():
-            print(f"  {name:13s} {k:20s} {a:8.3f} -> {b:8.3f}  ({b - a:+.3f})")
+    tmean.print_choices(choices, scores, len(cands))
+    tmean.print_effect("band 3 -> band 5 (mean of trees)", out["band3_vs_band5_on_each_subset"])
     print("Kimia-99 rows of the new candidates (paper " + " ".join(map(str, paper)) + "):")
     for k, r in kimia_rows.items():
         print(f"  {k:24s} {' '.join(map(str, r))} ({sum(r)})")

@@ -130,6 +130,25 @@ def held_out_choices(
     return out
 
 
+def print_choices(choices: dict, scores: dict, n_candidates: int) -> None:
+    """Print each set's held-out choice, its no-time-limit choice and its subset score."""
+    head = f"{f'held-out choice ({n_candidates} candidates)':32s} {'no time limit':24s}"
+    print(f"\n{'target':13s} {head} subset score")
+    for t, c in choices.items():
+        print(
+            f"{t:13s} {c['chosen']:32s} {c['no_time_limit_choice']:24s} "
+            f"{scores[t][c['chosen']]['score']}"
+        )
+
+
+def print_effect(what: str, effect: dict[str, dict[str, list[float]]]) -> None:
+    """Print ``{set: {label: [before, after]}}`` as ``before -> after (difference)``."""
+    print(f"{what}, on each selection subset:")
+    for name, d in effect.items():
+        for k, (a, b) in d.items():
+            print(f"  {name:13s} {k:20s} {a:8.3f} -> {b:8.3f}  ({b - a:+.3f})")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--cache-dir", default=str(Path.home() / ".cache/shapetree/beyond"))
@@ -184,17 +203,8 @@ def main(argv: list[str] | None = None) -> int:
     out["seconds"] = round(time.perf_counter() - t0, 1)
     out["machine"] = machine()
     write_json(path, out)
-    head = f"{'held-out choice (18 candidates)':32s} {'no time limit':24s}"
-    print(f"\n{'target':13s} {head} subset score")
-    for t, c in choices.items():
-        print(
-            f"{t:13s} {c['chosen']:32s} {c['no_time_limit_choice']:24s} "
-            f"{scores[t][c['chosen']]['score']}"
-        )
-    print("best tree -> mean of trees, on each selection subset:")
-    for name, d in out["best_tree_vs_tree_mean_on_each_subset"].items():
-        for k, (a, b) in d.items():
-            print(f"  {name:13s} {k:16s} {a:8.3f} -> {b:8.3f}  ({b - a:+.3f})")
+    print_choices(choices, scores, len(cands))
+    print_effect("best tree -> mean of trees", out["best_tree_vs_tree_mean_on_each_subset"])
     print("Kimia-99 rows of the new candidates (paper " + " ".join(map(str, paper)) + "):")
     for k, r in kimia_rows.items():
         print(f"  {k:22s} {' '.join(map(str, r))} ({sum(r)}) every rank >= paper: {meets[k]}")
