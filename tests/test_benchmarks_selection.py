@@ -140,3 +140,39 @@ def test_band_candidates_take_their_own_table_and_time() -> None:
     assert pool["mpeg7"]["n64 T3 none tmean b5"] == {"score": 2.0, "s_per_pair": 3e-3}
     assert "n64 T3 none tmean b5" not in pool["kimia99"]  # not seen before Kimia's choice
     assert earlier["mpeg7"] == {"n64 T3 none": {"score": 1.0, "s_per_pair": 1e-3}}  # not changed
+
+
+def test_rank_misses_name_the_wrong_neighbour_and_the_next_hit() -> None:
+    eb = pytest.importorskip("eval_band_tree_mean")
+    labels = np.array(["a", "a", "a", "b", "b", "b"])
+    D = np.full((6, 6), 1.0)
+    for i in range(6):
+        for j in range(6):
+            if labels[i] == labels[j]:
+                D[i, j] = 0.1 * (1 + abs(i - j))
+    np.fill_diagonal(D, 0.0)
+    D[0, 3] = 0.15  # query 0's first neighbour is a "b", between its two "a"s
+    paper = [6, 6]  # every query right at both ranks
+    misses = eb.rank_misses(D, labels, paper)
+    assert misses == [
+        {
+            "rank": 1,
+            "query": 0,
+            "class": "a",
+            "neighbour": 3,
+            "neighbour_class": "b",
+            "neighbour_cost": 0.15,
+            "next_same_class_cost": 0.2,
+        }
+    ]
+    assert eb.rank_misses(D, labels, [5, 6]) == []  # rank 1 at the paper's 5: no miss listed
+
+
+def test_every_candidate_scored_has_its_configuration() -> None:
+    eb = pytest.importorskip("eval_band_tree_mean")
+    cands = eb.every_candidate()
+    assert len(cands) == 42
+    # the union choice breaks ties by kernel runs per pair, so every scored label needs one
+    for fname, key in eb.OTHER_POOLS.items():
+        rec = json.loads((eb.RESULTS / fname).read_text())[key]
+        assert set(rec["mpeg7"]) <= set(cands)
