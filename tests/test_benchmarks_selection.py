@@ -176,3 +176,35 @@ def test_every_candidate_scored_has_its_configuration() -> None:
     for fname, key in eb.OTHER_POOLS.items():
         rec = json.loads((eb.RESULTS / fname).read_text())[key]
         assert set(rec["mpeg7"]) <= set(cands)
+
+
+def test_dense_tree_mean_candidates_and_the_union_pool() -> None:
+    dt = pytest.importorskip("eval_dense_tree_mean")
+    added = dt.new_candidates()
+    assert len(added) == 9
+    for c in added.values():
+        assert (c.target_factor, c.segment_weight, c.tree_combine, c.n_trees) == (2, 0.0, "mean", 3)
+    assert added["n64 T3 min dense tmean b5"].band == 5.0
+    assert added["n100 T3 mean dense tmean"].band == 3.0
+    assert added["n100 T3 mean dense tmean"].symmetrize == "mean"
+    assert dt.family("n64 T3 min dense tmean b5") == "n64 T3 dense tmean b5"
+    assert dt.family("n100 T3 none dense tmean") == "n100 T3 dense tmean"
+    # the earlier pool: every committed candidate, each with a configuration and a Kimia row
+    pool, rows = dt.earlier_pool()
+    assert {len(v) for v in pool.values()} == {42}
+    assert set(pool["mpeg7"]) == set(pool["kimia99"]) == set(rows)
+    cands = dt.every_candidate()
+    assert set(cands) == set(pool["mpeg7"]) | set(added)
+    # Kimia-99's score never enters its own choice; ties go to fewer kernel runs per pair
+    toy = {
+        "kimia99": {"n64 T1 none": 0.0, "n64 T3 none": 999.0, "n64 T1 min": 0.0},
+        "mpeg7": {"n64 T1 none": 2.0, "n64 T3 none": 1.0, "n64 T1 min": 2.0},
+        "swedish_leaf": {"n64 T1 none": 2.0, "n64 T3 none": 1.0, "n64 T1 min": 2.0},
+    }
+    assert dt.band.rule_choice("kimia99", toy, cands) == ("n64 T1 none", 1.5)
+    # the full-run estimate: median seconds per pair on the other sets times the pairs
+    timing = {"kimia99 n64 T3 dense tmean": 1e-3, "swedish_leaf n64 T3 dense tmean": 3e-3}
+    est = dt.estimated_full_s("mpeg7", timing)
+    assert est == {"n64 T3 dense tmean": pytest.approx(2e-3 * 1400**2)}
+    est = dt.estimated_full_s("swedish_leaf", timing)  # the pruned search's factor
+    assert est["n64 T3 dense tmean"] == pytest.approx(1e-3 * 1125**2 * dt.base.PRUNED_FACTOR)
