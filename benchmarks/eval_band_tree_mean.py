@@ -159,6 +159,26 @@ def union_pool_choice(
     }
 
 
+def first_run_timing(path: Path) -> tuple[dict[str, float], dict[str, Any]]:
+    """The seconds per pair and total seconds of the first run recorded in ``path``, if
+    any: a rerun reads its tables from the cache, so only the first run's times are real."""
+    if not path.exists():
+        return {}, {}
+    prior = json.loads(path.read_text())
+    first = prior.get("seconds_first_run", prior["seconds"])
+    return dict(prior["seconds_per_pair_measured"]), {"seconds_first_run": first}
+
+
+def print_misses(misses: list[dict[str, Any]] | None) -> None:
+    """Print the Kimia-99 queries of :func:`rank_misses`, one line each."""
+    for m in misses or []:
+        print(
+            f"  rank {m['rank']}: query {m['query']} ({m['class']}) has {m['neighbour']} "
+            f"({m['neighbour_class']}) at {m['neighbour_cost']}; its next "
+            f"{m['class']} at {m['next_same_class_cost']}"
+        )
+
+
 def rule_choice(
     target: str, pool: dict[str, dict[str, float]], cands: dict[str, MatchConfig]
 ) -> tuple[str, float]:
@@ -222,12 +242,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     budgets = {n: old["targets"][n]["selection"]["budget_s"] for n in base.TARGETS}
     added: dict[str, dict[str, dict[str, Any]]] = {}
-    timing: dict[str, float] = {}
-    first_run: dict[str, Any] = {}
-    if Path(args.json).exists():  # a rerun reads its tables from the cache: keep the first times
-        prior = json.loads(Path(args.json).read_text())
-        timing.update(prior["seconds_per_pair_measured"])
-        first_run["seconds_first_run"] = prior.get("seconds_first_run", prior["seconds"])
+    timing, first_run = first_run_timing(Path(args.json))
     choices: dict[str, dict[str, Any]] = {}
     for name in ORDER:
         if name == "kimia99":  # fixed before its table is computed
@@ -297,12 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     for k, r in kimia_rows.items():
         print(f"  {k:24s} {' '.join(map(str, r))} ({sum(r)})")
     print(f"Kimia-99 held out ({chosen}): {' '.join(map(str, row))} ({sum(row)})")
-    for m in out["kimia99_held_out"]["misses_below_paper"] or []:
-        print(
-            f"  rank {m['rank']}: query {m['query']} ({m['class']}) has {m['neighbour']} "
-            f"({m['neighbour_class']}) at {m['neighbour_cost']}; its next "
-            f"{m['class']} at {m['next_same_class_cost']}"
-        )
+    print_misses(out["kimia99_held_out"]["misses_below_paper"])
     print(
         f"Over every candidate scored so far ({union['candidates']}), Kimia-99's choice is "
         f"{union['chosen']}: {' '.join(map(str, union['row']))} ({union['sum']})"

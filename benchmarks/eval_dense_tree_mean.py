@@ -131,12 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     n_earlier = len(pool["mpeg7"])
     cands = every_candidate()
     added: dict[str, dict[str, dict[str, Any]]] = {}
-    timing: dict[str, float] = {}
-    first_run: dict[str, Any] = {}
-    if Path(args.json).exists():  # a rerun reads its tables from the cache: keep the first times
-        prior = json.loads(Path(args.json).read_text())
-        timing.update(prior["seconds_per_pair_measured"])
-        first_run["seconds_first_run"] = prior.get("seconds_first_run", prior["seconds"])
+    timing, first_run = band.first_run_timing(Path(args.json))
     choices: dict[str, dict[str, Any]] = {}
     for name in ORDER:
         if name == "kimia99":  # fixed before its table is computed
@@ -199,12 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     print(f"Kimia-99 paper row: {' '.join(map(str, paper))} ({sum(paper)})")
     print(f"Kimia-99 held out ({chosen}): {' '.join(map(str, row))} ({sum(row)})")
-    for m in out["kimia99_held_out"]["misses_below_paper"] or []:
-        print(
-            f"  rank {m['rank']}: query {m['query']} ({m['class']}) has {m['neighbour']} "
-            f"({m['neighbour_class']}) at {m['neighbour_cost']}; its next "
-            f"{m['class']} at {m['next_same_class_cost']}"
-        )
+    band.print_misses(out["kimia99_held_out"]["misses_below_paper"])
     print(f"json: {args.json}")
     return 0
 
