@@ -208,3 +208,24 @@ def test_dense_tree_mean_candidates_and_the_union_pool() -> None:
     assert est == {"n64 T3 dense tmean": pytest.approx(2e-3 * 1400**2)}
     est = dt.estimated_full_s("swedish_leaf", timing)  # the pruned search's factor
     assert est["n64 T3 dense tmean"] == pytest.approx(1e-3 * 1125**2 * dt.base.PRUNED_FACTOR)
+
+
+def test_preset_tree_mean_adoption_rule() -> None:
+    """``eval_preset_tree_mean.adopt``: the mean joins a preset only when it is at least as
+    good on every other set and better on one; the tested presets are the 3-tree ones."""
+    ptm = pytest.importorskip("eval_preset_tree_mean")
+    assert ptm.adopt({"a": {"min": 1.0, "mean": 2.0}, "b": {"min": 3.0, "mean": 3.0}})
+    assert not ptm.adopt({"a": {"min": 1.0, "mean": 1.0}, "b": {"min": 3.0, "mean": 3.0}})
+    assert not ptm.adopt({"a": {"min": 1.0, "mean": 5.0}, "b": {"min": 3.0, "mean": 2.9}})
+    from shapetree.matching import PRESETS
+
+    # every preset with more than one tree is tested, and now averages its trees (the
+    # committed results/preset_tree_mean.json adopted the mean for both)
+    several = {k for k, c in PRESETS.items() if c.n_trees > 1}
+    assert several == set(ptm.PRESETS_TESTED)
+    rec = json.loads((ptm.RESULTS / "preset_tree_mean.json").read_text())
+    for name in ptm.PRESETS_TESTED:
+        r = rec["presets"][name]
+        assert name not in r["scores"] and len(r["scores"]) == 2  # never its own set
+        assert r["adopt_mean"] == ptm.adopt(r["scores"])
+        assert PRESETS[name].tree_combine == ("mean" if r["adopt_mean"] else "min")
