@@ -1,10 +1,10 @@
 """Should the 3-tree presets average their trees? A held-out adoption test (issue 15, item 4)
 
-The ``kimia99`` and ``mpeg7`` presets match with three shape-trees and keep the best one
-(``tree_combine="min"``, as the paper does). ``eval_tree_combine.py`` found the trees' mean
-better in 13 of 18 comparisons of the issue-15 grid, but no preset was changed: a preset is
-tuned on its own set, and an option may join it only if it wins *without* being tuned on
-that set. This script makes that test for each 3-tree preset:
+The ``kimia99`` and ``mpeg7`` presets match with three shape-trees; until this test they
+kept the best one (``tree_combine="min"``, as the paper does). ``eval_tree_combine.py``
+found the trees' mean better in 13 of 18 comparisons of the issue-15 grid, but no preset was
+changed: a preset is tuned on its own set, and an option may join it only if it wins
+*without* being tuned on that set. This script makes that test for each 3-tree preset:
 
 * the preset's configuration, once with ``tree_combine="min"`` and once with ``"mean"``,
   every other field unchanged, is scored pairwise on the selection subsets of the **other
@@ -22,8 +22,8 @@ Run::
 
     SHAPETREE_DATA=/work/shared/datasets nice python3 benchmarks/eval_preset_tree_mean.py
 
-Writes ``benchmarks/results/preset_tree_mean.json`` and prints a table (about 5 min on the
-two cores; distance tables are cached, ``--cache-dir``).
+Writes ``benchmarks/results/preset_tree_mean.json`` and prints a table (542 s on the two
+cores of an Intel Xeon machine; distance tables are cached, ``--cache-dir``).
 """
 
 from __future__ import annotations
