@@ -229,3 +229,57 @@ def test_preset_tree_mean_adoption_rule() -> None:
         assert name not in r["scores"] and len(r["scores"]) == 2  # never its own set
         assert r["adopt_mean"] == ptm.adopt(r["scores"])
         assert PRESETS[name].tree_combine == ("mean" if r["adopt_mean"] else "min")
+
+
+def _ellipse(a: float, b: float, n: int = 400, turn: float = 0.0, start: int = 0) -> np.ndarray:
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    p = np.c_[a * np.cos(t), b * np.sin(t)]
+    c, s = np.cos(turn), np.sin(turn)
+    return np.roll(p @ np.array([[c, -s], [s, c]]), start, axis=0)
+
+
+def test_global_features_of_known_shapes_and_their_invariance() -> None:
+    """``eval_global_term.global_features``: an ellipse's elongation is its axis ratio, a
+    convex shape's solidity is 1, a circle's circularity is 1 (all as logs, to the
+    polygon's accuracy), a square's circularity is pi/4; the features do not change under
+    rotation, scaling, translation, mirroring, start point or orientation."""
+    gt = pytest.importorskip("eval_global_term")
+    f = gt.global_features(_ellipse(3.0, 1.0), 64)
+    assert f[0] == pytest.approx(np.log(3.0), abs=0.01)
+    assert f[1] == pytest.approx(0.0, abs=1e-9)
+    circle = gt.global_features(_ellipse(1.0, 1.0), 64)
+    assert circle[0] == pytest.approx(0.0, abs=1e-6)
+    assert circle[2] == pytest.approx(0.0, abs=0.01)
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    assert gt.global_features(square, 64)[2] == pytest.approx(np.log(np.pi / 4), abs=1e-6)
+    # an L-shape (three unit squares): solidity 3 / 3.5
+    ell = np.array([[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]], float)
+    assert gt.global_features(ell, 200)[1] == pytest.approx(np.log(3 / 3.5), abs=1e-6)
+    ref = gt.global_features(_ellipse(2.0, 1.0), 64)
+    moved = _ellipse(2.0, 1.0, turn=0.7, start=37) * 5.0 + [10.0, -4.0]
+    for other in (moved, moved[::-1], moved * [-1.0, 1.0]):
+        assert np.allclose(gt.global_features(other, 64), ref, atol=1e-3)
+    G = gt.global_distance(np.array([ref, f, circle]))
+    assert np.allclose(G, G.T) and np.allclose(np.diag(G), 0)
+
+
+def test_global_term_weight_is_chosen_on_the_other_sets() -> None:
+    """``eval_global_term.choose``: the weight with the best mean rank over the two other
+    sets' subsets, ties to the smaller weight; the scored set's own scores never count.
+    The committed results/beyond_paper_global_term.json follows the rule."""
+    gt = pytest.importorskip("eval_global_term")
+    ws = [str(w) for w in gt.WEIGHTS]
+    flat = {w: 1.0 for w in ws}
+    rising = {w: float(i) for i, w in enumerate(ws)}
+    subsets = {
+        "kimia99": {"scores": dict(flat)},
+        "swedish_leaf": {"scores": dict(rising)},
+        "mpeg7": {"scores": {w: -float(i) for i, w in enumerate(ws)}},
+    }
+    assert gt.choose("mpeg7", subsets)["chosen_w"] == gt.WEIGHTS[-1]
+    assert gt.choose("swedish_leaf", subsets)["chosen_w"] == gt.WEIGHTS[0]
+    assert gt.choose("kimia99", subsets)["chosen_w"] == gt.WEIGHTS[0]  # a tie over all: w = 0
+    rec = json.loads((gt.RESULTS / "beyond_paper_global_term.json").read_text())
+    for target, c in rec["held_out_choice"].items():
+        assert target not in c["selected_on"]
+        assert c["chosen_w"] == gt.choose(target, rec["subsets"])["chosen_w"]
