@@ -283,3 +283,23 @@ def test_global_term_weight_is_chosen_on_the_other_sets() -> None:
     for target, c in rec["held_out_choice"].items():
         assert target not in c["selected_on"]
         assert c["chosen_w"] == gt.choose(target, rec["subsets"])["chosen_w"]
+
+
+def test_length_power_is_chosen_on_the_other_sets() -> None:
+    """``eval_length_power.choose``: the best mean rank over the two other sets, ties to the
+    power nearer the paper's 1; the committed JSON follows the rule and never uses the
+    scored set's own scores."""
+    lp = pytest.importorskip("eval_length_power")
+    ps = [str(p) for p in lp.POWERS]
+    subsets = {
+        "kimia99": {"scores": {p: 1.0 for p in ps}},
+        "swedish_leaf": {"scores": {p: 1.0 for p in ps}},
+        "mpeg7": {"scores": {p: float(i) for i, p in enumerate(ps)}},
+    }
+    assert lp.choose("mpeg7", subsets)["chosen_p"] == 1.0  # all tied: the paper's power
+    assert lp.choose("kimia99", subsets)["chosen_p"] == lp.POWERS[-1]
+    rec = json.loads((lp.RESULTS / "beyond_paper_length_power.json").read_text())
+    assert rec["powers"] == list(lp.POWERS)
+    for target, c in rec["held_out_choice"].items():
+        assert target not in c["selected_on"]
+        assert c["chosen_p"] == lp.choose(target, rec["subsets"])["chosen_p"]
