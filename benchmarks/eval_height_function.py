@@ -38,8 +38,6 @@ Writes ``benchmarks/results/beyond_paper_height_function.json`` and prints a tab
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -49,8 +47,8 @@ import numpy as np
 from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _knob  # noqa: E402
 import eval_beyond as base  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
 
 from shapetree import datasets  # noqa: E402
 from shapetree._bench import protocol_score  # noqa: E402
@@ -64,13 +62,16 @@ GROUP = 3
 SIGMA = N_POINTS / 6.0
 SKIP = 0.3
 WEIGHTS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0)
-#: where the base configuration's full scores were made (``w = 0`` needs no new run)
-BASE_FULL = {
-    n: f"beyond_paper_tree_mean.json full_runs.{n} (python3 benchmarks/eval_tree_combine.py "
-    f"--full {n})"
-    for n in ("mpeg7", "swedish_leaf")
-}
-PROTOCOL = {"k": 40, "n_train": 25, "n_splits": 10, "seed": 0}
+KNOB = _knob.Knob(
+    script="eval_height_function.py",
+    symbol="w",
+    grid=WEIGHTS,
+    off=0.0,
+    json_name="beyond_paper_height_function.json",
+    base_full="beyond_paper_tree_mean.json full_runs.{name} (python3 "
+    "benchmarks/eval_tree_combine.py --full {name})",
+)
+PROTOCOL = _knob.PROTOCOL
 
 
 def heights(p: np.ndarray, group: int = GROUP) -> np.ndarray:
@@ -258,13 +259,7 @@ def subset_scores(cache: Path) -> dict[str, dict[str, Any]]:
 
 def choose(target: str, subsets: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """The weight with the best mean rank on the other two sets (ties: smaller ``w``)."""
-    others = tuple(n for n in base.TARGETS if n != target)
-    scores = {n: {str(w): {"score": subsets[n]["scores"][str(w)]} for w in WEIGHTS} for n in others}
-    mr = {
-        k: float(v) for k, v in base.mean_ranks(scores, others, [str(w) for w in WEIGHTS]).items()
-    }
-    chosen = min(WEIGHTS, key=lambda w: (mr[str(w)], w))
-    return {"selected_on": list(others), "mean_rank": mr, "chosen_w": chosen}
+    return _knob.choose(KNOB, target, subsets)
 
 
 def full_score(name: str, w: float, cache: Path) -> dict[str, Any]:
@@ -299,67 +294,14 @@ def full_score(name: str, w: float, cache: Path) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--cache-dir", default=str(Path.home() / ".cache/shapetree/beyond"))
-    ap.add_argument("--json", default=str(RESULTS / "beyond_paper_height_function.json"))
-    ap.add_argument("--full", nargs="*", default=[], choices=("mpeg7", "swedish_leaf"))
-    args = ap.parse_args(argv)
-    cache = Path(args.cache_dir)
-    cache.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    path = Path(args.json)
-    out: dict[str, Any] = {
-        "command": "python3 benchmarks/eval_height_function.py " + " ".join(argv or sys.argv[1:]),
-        "measure": "pairwise: each distance depends only on the two shapes (no re-ranking)",
+    header = {
         "protocol": " ".join(__doc__.split("\n\n")[1:5]).replace("\n", " "),
         "base": BASE_LABEL,
         "config": CONFIG.as_dict(),
         "height_function": {"n_points": N_POINTS, "group": GROUP, "sigma": SIGMA, "skip": SKIP},
         "weights": list(WEIGHTS),
-        "full_runs": {},
     }
-    if path.exists():  # keep the full runs of sets not rerun now
-        kept = json.loads(path.read_text()).get("full_runs", {})
-        out["full_runs"] = {k: v for k, v in kept.items() if k not in args.full}
-    out["subsets"] = subset_scores(cache)
-    out["held_out_choice"] = {t: choose(t, out["subsets"]) for t in base.TARGETS}
-    wk = out["held_out_choice"]["kimia99"]["chosen_w"]
-    out["kimia99_held_out"] = {
-        "w": wk,
-        "row": out["subsets"]["kimia99"]["ranks"][str(wk)],
-        "row_without": out["subsets"]["kimia99"]["ranks"]["0.0"],
-        "paper": base.PAPER["kimia99"],
-        "scored_on": "the full set (99 shapes): its selection subset is the whole set",
-    }
-    write_json(path, out)
-    print(f"\n{'target':13s} chosen w  mean ranks on the other two sets")
-    for t, c in out["held_out_choice"].items():
-        print(f"{t:13s} {c['chosen_w']:<9} {c['mean_rank']}")
-    k = out["kimia99_held_out"]
-    print(f"Kimia-99 (w = {wk}): {k['row']} ({sum(k['row'])}), without {sum(k['row_without'])}")
-    for name in args.full:
-        w = out["held_out_choice"][name]["chosen_w"]
-        if w == 0:  # the fusion is off: the score is the base configuration's own
-            print(f"{name}: w = 0, the base configuration's full score stands (no run)")
-            out["full_runs"][name] = {"w": 0.0, "see": BASE_FULL[name]}
-            continue
-        rec = full_score(name, w, cache)
-        rec["command"] = f"python3 benchmarks/eval_height_function.py --full {name}"
-        rec["machine"] = machine()
-        out["full_runs"][name] = rec
-        out["seconds"] = round(time.perf_counter() - t0, 1)
-        write_json(path, out)
-        key = "bullseye" if name == "mpeg7" else "accuracy_mean"
-        print(
-            f"{name}: w = {w}: {rec['without'][key]} -> {rec['with'][key]} "
-            f"(height functions alone {rec['height_function_alone'][key]})",
-            flush=True,
-        )
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    write_json(path, out)
-    print(f"json: {path}")
-    return 0
+    return _knob.run(KNOB, __doc__, argv, header, subset_scores, full_score)
 
 
 if __name__ == "__main__":

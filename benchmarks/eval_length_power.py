@@ -24,8 +24,6 @@ Writes ``benchmarks/results/beyond_paper_length_power.json`` and prints a table.
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -34,8 +32,8 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _knob  # noqa: E402
 import eval_beyond as base  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
 
 from shapetree import datasets  # noqa: E402
 from shapetree._bench import protocol_score  # noqa: E402
@@ -43,7 +41,16 @@ from shapetree.retrieval import combine, directed_costs  # noqa: E402
 
 BASE = base.BASE.replace(n_points=64, n_trees=3, tree_combine="mean")
 POWERS = (0.75, 1.0, 1.25, 1.5)
-PROTOCOL = {"k": 40, "n_train": 25, "n_splits": 10, "seed": 0}
+PROTOCOL = _knob.PROTOCOL
+KNOB = _knob.Knob(
+    script="eval_length_power.py",
+    symbol="p",
+    grid=POWERS,
+    off=1.0,
+    json_name="beyond_paper_length_power.json",
+    base_full="beyond_paper_tree_mean.json full_runs.{name} (python3 "
+    "benchmarks/eval_tree_combine.py --full {name})",
+)
 
 
 def subset_scores(cache: Path) -> dict[str, dict[str, Any]]:
@@ -69,75 +76,28 @@ def subset_scores(cache: Path) -> dict[str, dict[str, Any]]:
 
 def choose(target: str, subsets: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """The power with the best mean rank on the other two sets (ties: nearer 1)."""
-    others = tuple(n for n in base.TARGETS if n != target)
-    scores = {n: {str(p): {"score": subsets[n]["scores"][str(p)]} for p in POWERS} for n in others}
-    mr = base.mean_ranks(scores, others, [str(p) for p in POWERS])
-    mr = {k: float(v) for k, v in mr.items()}
-    chosen = min(POWERS, key=lambda p: (mr[str(p)], abs(p - 1.0), p))
-    return {"selected_on": list(others), "mean_rank": mr, "chosen_p": chosen}
+    return _knob.choose(KNOB, target, subsets)
+
+
+def full_score(name: str, p: float, cache: Path) -> dict[str, Any]:
+    """The full-set score with the length power ``p``."""
+    ds = datasets.load(name, n_points=None, progress=False)
+    t1 = time.perf_counter()
+    costs = directed_costs(ds.curves, None, BASE.replace(length_power=p), cache_dir=cache)
+    rec = protocol_score(name, combine(costs, "none"), np.asarray(ds.labels), PROTOCOL)
+    rec.pop("bullseye_per_class", None)
+    rec.pop("accuracy_splits", None)
+    rec.update(p=p, seconds_matrix=round(time.perf_counter() - t1, 1))
+    return rec
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--cache-dir", default=str(Path.home() / ".cache/shapetree/beyond"))
-    ap.add_argument("--json", default=str(RESULTS / "beyond_paper_length_power.json"))
-    ap.add_argument("--full", nargs="*", default=[], choices=("mpeg7", "swedish_leaf"))
-    args = ap.parse_args(argv)
-    cache = Path(args.cache_dir)
-    cache.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    path = Path(args.json)
-    out: dict[str, Any] = {
-        "command": "python3 benchmarks/eval_length_power.py " + " ".join(argv or sys.argv[1:]),
-        "measure": "pairwise: each distance depends only on the two shapes (no re-ranking)",
+    header = {
         "protocol": " ".join(__doc__.split("\n\n")[1:3]).replace("\n", " "),
         "base": BASE.as_dict(),
         "powers": list(POWERS),
-        "full_runs": {},
     }
-    if path.exists():
-        kept = json.loads(path.read_text()).get("full_runs", {})
-        out["full_runs"] = {k: v for k, v in kept.items() if k not in args.full}
-    out["subsets"] = subset_scores(cache)
-    out["held_out_choice"] = {t: choose(t, out["subsets"]) for t in base.TARGETS}
-    pk = out["held_out_choice"]["kimia99"]["chosen_p"]
-    out["kimia99_held_out"] = {
-        "p": pk,
-        "row": out["subsets"]["kimia99"]["ranks"][str(pk)],
-        "paper": base.PAPER["kimia99"],
-        "scored_on": "the full set (99 shapes): its selection subset is the whole set",
-    }
-    write_json(path, out)
-    print(f"\n{'target':13s} chosen p  mean ranks on the other two sets")
-    for t, c in out["held_out_choice"].items():
-        print(f"{t:13s} {c['chosen_p']:<9} {c['mean_rank']}")
-    k = out["kimia99_held_out"]
-    print(f"Kimia-99 (p = {pk}): {k['row']} ({sum(k['row'])})")
-    for name in args.full:
-        p = out["held_out_choice"][name]["chosen_p"]
-        if p == 1.0:
-            print(f"{name}: p = 1, the committed full score of eval_tree_combine.py stands")
-            out["full_runs"][name] = {
-                "p": p,
-                "see": f"beyond_paper_tree_mean.json full_runs.{name}",
-            }
-            continue
-        ds = datasets.load(name, n_points=None, progress=False)
-        t1 = time.perf_counter()
-        costs = directed_costs(ds.curves, None, BASE.replace(length_power=p), cache_dir=cache)
-        rec = protocol_score(name, combine(costs, "none"), np.asarray(ds.labels), PROTOCOL)
-        rec.pop("bullseye_per_class", None)
-        rec.pop("accuracy_splits", None)
-        rec.update(p=p, seconds_matrix=round(time.perf_counter() - t1, 1), machine=machine())
-        rec["command"] = f"python3 benchmarks/eval_length_power.py --full {name}"
-        out["full_runs"][name] = rec
-        write_json(path, out)
-        print(f"{name}: p = {p}: {rec}", flush=True)
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    write_json(path, out)
-    print(f"json: {path}")
-    return 0
+    return _knob.run(KNOB, __doc__, argv, header, subset_scores, full_score)
 
 
 if __name__ == "__main__":

@@ -279,7 +279,7 @@ def test_global_term_weight_is_chosen_on_the_other_sets() -> None:
     assert gt.choose("mpeg7", subsets)["chosen_w"] == gt.WEIGHTS[-1]
     assert gt.choose("swedish_leaf", subsets)["chosen_w"] == gt.WEIGHTS[0]
     assert gt.choose("kimia99", subsets)["chosen_w"] == gt.WEIGHTS[0]  # a tie over all: w = 0
-    rec = json.loads((gt.RESULTS / "beyond_paper_global_term.json").read_text())
+    rec = json.loads((gt._knob.RESULTS / gt.KNOB.json_name).read_text())
     for target, c in rec["held_out_choice"].items():
         assert target not in c["selected_on"]
         assert c["chosen_w"] == gt.choose(target, rec["subsets"])["chosen_w"]
@@ -298,7 +298,7 @@ def test_length_power_is_chosen_on_the_other_sets() -> None:
     }
     assert lp.choose("mpeg7", subsets)["chosen_p"] == 1.0  # all tied: the paper's power
     assert lp.choose("kimia99", subsets)["chosen_p"] == lp.POWERS[-1]
-    rec = json.loads((lp.RESULTS / "beyond_paper_length_power.json").read_text())
+    rec = json.loads((lp._knob.RESULTS / lp.KNOB.json_name).read_text())
     assert rec["powers"] == list(lp.POWERS)
     for target, c in rec["held_out_choice"].items():
         assert target not in c["selected_on"]
@@ -374,7 +374,7 @@ def test_height_function_weight_is_chosen_on_the_other_sets() -> None:
     b = np.array([[0.0, 8.0], [27.0, 0.0]])
     assert np.allclose(hf.fuse(a, b, 0.0), a) and np.allclose(hf.fuse(a, b, 1.0), b)
     assert hf.fuse(a, b, 0.5)[0, 1] == pytest.approx(4.0)
-    rec = json.loads((hf.RESULTS / "beyond_paper_height_function.json").read_text())
+    rec = json.loads((hf._knob.RESULTS / hf.KNOB.json_name).read_text())
     assert rec["weights"] == list(hf.WEIGHTS)
     for target, c in rec["held_out_choice"].items():
         assert target not in c["selected_on"]
