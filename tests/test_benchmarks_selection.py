@@ -379,3 +379,17 @@ def test_height_function_weight_is_chosen_on_the_other_sets() -> None:
     for target, c in rec["held_out_choice"].items():
         assert target not in c["selected_on"]
         assert c["chosen_w"] == hf.choose(target, rec["subsets"])["chosen_w"]
+
+
+def test_height_function_matrix_is_cached_by_its_curves(tmp_path: Path) -> None:
+    """``cached_hf_matrix`` writes one file per set of curves and reads it back unchanged;
+    other curves get another file."""
+    hf = pytest.importorskip("eval_height_function")
+    t = np.linspace(0, 2 * np.pi, 120, endpoint=False)
+    curves = [np.c_[(1 + a * np.cos(3 * t)) * np.cos(t), np.sin(t)] for a in (0.1, 0.2, 0.3)]
+    H = hf.cached_hf_matrix(curves, tmp_path)
+    assert len(list(tmp_path.glob("height_function_*.npy"))) == 1
+    assert np.array_equal(hf.cached_hf_matrix(curves, tmp_path), H)
+    assert np.allclose(H, hf.hf_matrix(curves))
+    hf.cached_hf_matrix(curves[:2], tmp_path)
+    assert len(list(tmp_path.glob("height_function_*.npy"))) == 2
