@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import eval_beyond as base  # noqa: E402
 from _common import RESULTS, machine, write_json  # noqa: E402
@@ -46,7 +48,8 @@ class Knob:
         The results file in ``benchmarks/results/``.
     base_full : str
         Where the base configuration's full-set scores were made (a JSON key and command,
-        with ``{name}`` for the set).
+        with ``{name}`` for the set); by default ``eval_tree_combine.py``'s runs of the base
+        ``n64 T3 none tmean``.
     """
 
     script: str
@@ -54,7 +57,31 @@ class Knob:
     grid: tuple[float, ...]
     off: float
     json_name: str
-    base_full: str
+    base_full: str = (
+        "beyond_paper_tree_mean.json full_runs.{name} (python3 "
+        "benchmarks/eval_tree_combine.py --full {name})"
+    )
+
+
+def grid_scores(
+    name: str, labels: np.ndarray, grid: tuple[float, ...], matrix: Callable[[float], np.ndarray]
+) -> dict[str, Any]:
+    """The selection score of ``matrix(value)`` on the subset of ``name`` for every value
+    of the grid (keys ``str(value)``), and for Kimia-99 its rank rows too."""
+    rec: dict[str, Any] = {"scores": {}}
+    for v in grid:
+        D = matrix(v)
+        rec["scores"][str(v)] = round(base.subset_score(name, D, labels), 3)
+        if name == "kimia99":
+            rec.setdefault("ranks", {})[str(v)] = [int(r) for r in base.kimia_ranks(D, labels)]
+    return rec
+
+
+def slim(rec: dict[str, Any]) -> dict[str, Any]:
+    """A protocol record without its per-class and per-split lists."""
+    rec.pop("bullseye_per_class", None)
+    rec.pop("accuracy_splits", None)
+    return rec
 
 
 def choose(knob: Knob, target: str, subsets: dict[str, dict[str, Any]]) -> dict[str, Any]:

@@ -66,8 +66,6 @@ KNOB = _knob.Knob(
     grid=WEIGHTS,
     off=0.0,
     json_name="beyond_paper_global_term.json",
-    base_full="beyond_paper_tree_mean.json full_runs.{name} (python3 "
-    "benchmarks/eval_tree_combine.py --full {name})",
 )
 PROTOCOL = _knob.PROTOCOL
 
@@ -119,18 +117,8 @@ def subset_scores(cache: Path) -> dict[str, dict[str, Any]]:
         t0 = time.perf_counter()
         D = combine(directed_costs(curves, None, CONFIG, cache_dir=cache, progress=False), "none")
         G = global_distance(np.array([global_features(c, CONFIG.n_points) for c in curves]))
-        rec: dict[str, Any] = {
-            "scores": {
-                str(w): round(base.subset_score(name, D * np.exp(w * G), labels), 3)
-                for w in WEIGHTS
-            },
-            "table_seconds_this_run": round(time.perf_counter() - t0, 1),
-        }
-        if name == "kimia99":
-            rec["ranks"] = {
-                str(w): [int(r) for r in base.kimia_ranks(D * np.exp(w * G), labels)]
-                for w in WEIGHTS
-            }
+        rec = _knob.grid_scores(name, labels, WEIGHTS, lambda w, D=D, G=G: D * np.exp(w * G))
+        rec["table_seconds_this_run"] = round(time.perf_counter() - t0, 1)
         out[name] = rec
         print(f"{name:13s} {rec['scores']}", flush=True)
     return out
@@ -156,8 +144,7 @@ def full_score(name: str, w: float, cache: Path) -> dict[str, Any]:
         "seconds_matrix_this_run": round(seconds, 1),  # ~0 when read from the cache
     }
     for k in ("without", "with"):
-        rec[k].pop("bullseye_per_class", None)
-        rec[k].pop("accuracy_splits", None)
+        _knob.slim(rec[k])
     return rec
 
 

@@ -48,8 +48,6 @@ KNOB = _knob.Knob(
     grid=POWERS,
     off=1.0,
     json_name="beyond_paper_length_power.json",
-    base_full="beyond_paper_tree_mean.json full_runs.{name} (python3 "
-    "benchmarks/eval_tree_combine.py --full {name})",
 )
 
 
@@ -58,17 +56,17 @@ def subset_scores(cache: Path) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     for name in base.TARGETS:
         curves, labels = base.load_subset(name)
-        rec: dict[str, Any] = {"scores": {}, "seconds": {}}
-        for p in POWERS:
+        seconds: dict[str, float] = {}
+
+        def matrix(p: float, curves: list = curves, seconds: dict = seconds) -> np.ndarray:
             t0 = time.perf_counter()
-            costs = directed_costs(
-                curves, None, BASE.replace(length_power=p), cache_dir=cache, progress=False
-            )
-            D = combine(costs, "none")
-            rec["seconds"][str(p)] = round(time.perf_counter() - t0, 1)
-            rec["scores"][str(p)] = round(base.subset_score(name, D, labels), 3)
-            if name == "kimia99":
-                rec.setdefault("ranks", {})[str(p)] = [int(r) for r in base.kimia_ranks(D, labels)]
+            cfg = BASE.replace(length_power=p)
+            D = combine(directed_costs(curves, None, cfg, cache_dir=cache, progress=False), "none")
+            seconds[str(p)] = round(time.perf_counter() - t0, 1)
+            return D
+
+        rec = _knob.grid_scores(name, labels, POWERS, matrix)
+        rec["seconds"] = seconds
         out[name] = rec
         print(f"{name:13s} {rec['scores']}", flush=True)
     return out
@@ -85,8 +83,7 @@ def full_score(name: str, p: float, cache: Path) -> dict[str, Any]:
     t1 = time.perf_counter()
     costs = directed_costs(ds.curves, None, BASE.replace(length_power=p), cache_dir=cache)
     rec = protocol_score(name, combine(costs, "none"), np.asarray(ds.labels), PROTOCOL)
-    rec.pop("bullseye_per_class", None)
-    rec.pop("accuracy_splits", None)
+    _knob.slim(rec)
     rec.update(p=p, seconds_matrix=round(time.perf_counter() - t1, 1))
     return rec
 

@@ -342,6 +342,8 @@ def test_height_function_dp_agrees_with_its_oracle() -> None:
             C = rng.random((n, m))
             pen = float(rng.uniform(0.05, 0.8))
             assert hf.dp_cyclic(C, pen) == pytest.approx(hf.dp_cyclic_reference(C, pen))
+            # either way round: what lets hf_matrix match each pair once
+            assert hf.dp_cyclic(C.T.copy(), pen) == pytest.approx(hf.dp_cyclic(C, pen))
     w = hf.group_weights()
     assert w.sum() == pytest.approx(1.0) and w[0] == pytest.approx(w[-1], rel=0.2)
     t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
@@ -356,6 +358,15 @@ def test_height_function_dp_agrees_with_its_oracle() -> None:
     assert hf.hf_pair(Fa, Fs, Fsm, w, hf.SKIP) > 0.01
     H = hf.hf_matrix([bump, star, star * 2.0])
     assert H[1, 2] == pytest.approx(0.0, abs=1e-9) and H[0, 1] > 0.01
+    rng_curves = [bump * [1.0, s] + 0.02 * rng.standard_normal(bump.shape) for s in (0.6, 1, 1.4)]
+    curves = [bump, star, *rng_curves]
+    H = hf.hf_matrix(curves)  # each pair once, mirrored; against both directions, one by one
+    F = [hf.descriptor(c) for c in curves]
+    Fm = [hf.descriptor(c, mirror=True) for c in curves]
+    for i in range(len(curves)):
+        for j in range(len(curves)):
+            if i != j:
+                assert H[i, j] == pytest.approx(hf.hf_pair(F[i], F[j], Fm[j], w, hf.SKIP), rel=1e-9)
 
 
 def test_height_function_weight_is_chosen_on_the_other_sets() -> None:
