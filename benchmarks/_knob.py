@@ -77,6 +77,18 @@ def grid_scores(
     return rec
 
 
+def full_base(name: str, config: Any, cache: Path) -> tuple[list, np.ndarray, np.ndarray, float]:
+    """A full set's traced outlines, labels, base matrix (``directed_costs`` through the
+    cache, not symmetrised) and the seconds that matrix took this run (~0 when cached)."""
+    from shapetree import datasets
+    from shapetree.retrieval import combine, directed_costs
+
+    ds = datasets.load(name, n_points=None, progress=False)
+    t0 = time.perf_counter()
+    D = combine(directed_costs(ds.curves, None, config, cache_dir=cache, progress=True), "none")
+    return ds.curves, np.asarray(ds.labels), D, time.perf_counter() - t0
+
+
 def slim(rec: dict[str, Any]) -> dict[str, Any]:
     """A protocol record without its per-class and per-split lists."""
     rec.pop("bullseye_per_class", None)

@@ -54,7 +54,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _knob  # noqa: E402
 import eval_beyond as base  # noqa: E402
 
-from shapetree import datasets  # noqa: E402
 from shapetree._bench import protocol_score  # noqa: E402
 from shapetree.curves import as_curve, resample  # noqa: E402
 from shapetree.retrieval import combine, directed_costs  # noqa: E402
@@ -293,13 +292,9 @@ def choose(target: str, subsets: dict[str, dict[str, Any]]) -> dict[str, Any]:
 
 def full_score(name: str, w: float, cache: Path) -> dict[str, Any]:
     """The base configuration's full-set score without and with the fusion weight ``w``."""
-    ds = datasets.load(name, n_points=None, progress=False)
-    labels = np.asarray(ds.labels)
+    curves, labels, D, seconds = _knob.full_base(name, CONFIG, cache)
     t0 = time.perf_counter()
-    D = combine(directed_costs(ds.curves, None, CONFIG, cache_dir=cache, progress=True), "none")
-    seconds = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    H = cached_hf_matrix(ds.curves, cache)
+    H = cached_hf_matrix(curves, cache)
     seconds_hf = time.perf_counter() - t0
     rec = {
         "without": protocol_score(name, D, labels, PROTOCOL),
