@@ -40,9 +40,9 @@ class Knob:
         The script's file name, for the commands recorded in the JSON.
     symbol : str
         The knob's name in the JSON and the output (``w``, ``p``).
-    grid : tuple of float
+    grid : tuple of float or str
         The values tried, fixed before any score was seen.
-    off : float
+    off : float or str
         The value that leaves the base configuration as it is.
     json_name : str
         The results file in ``benchmarks/results/``.
@@ -54,13 +54,20 @@ class Knob:
 
     script: str
     symbol: str
-    grid: tuple[float, ...]
-    off: float
+    grid: tuple[Any, ...]
+    off: Any
     json_name: str
     base_full: str = (
         "beyond_paper_tree_mean.json full_runs.{name} (python3 "
         "benchmarks/eval_tree_combine.py --full {name})"
     )
+
+    def tie(self, v: Any) -> tuple[float, float]:
+        """How a value ranks among equals: nearer ``off`` first, then the smaller (numbers);
+        earlier in the grid first (any other value)."""
+        if isinstance(v, (int, float)):
+            return abs(v - self.off), v
+        return float(self.grid.index(v)), 0.0
 
 
 def grid_scores(
@@ -98,13 +105,12 @@ def slim(rec: dict[str, Any]) -> dict[str, Any]:
 
 def choose(knob: Knob, target: str, subsets: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """The value with the best mean rank on the subsets of the two sets other than
-    ``target`` (ranks as ``eval_beyond.mean_ranks``; ties go to the value nearer
-    ``knob.off``, then the smaller)."""
+    ``target`` (ranks as ``eval_beyond.mean_ranks``; ties as :meth:`Knob.tie`)."""
     others = tuple(n for n in base.TARGETS if n != target)
     keys = [str(v) for v in knob.grid]
     scores = {n: {k: {"score": subsets[n]["scores"][k]} for k in keys} for n in others}
     mr = {k: float(v) for k, v in base.mean_ranks(scores, others, keys).items()}
-    chosen = min(knob.grid, key=lambda v: (mr[str(v)], abs(v - knob.off), v))
+    chosen = min(knob.grid, key=lambda v: (mr[str(v)], *knob.tie(v)))
     return {"selected_on": list(others), "mean_rank": mr, f"chosen_{knob.symbol}": chosen}
 
 

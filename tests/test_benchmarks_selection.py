@@ -305,22 +305,14 @@ def test_length_power_is_chosen_on_the_other_sets() -> None:
         assert c["chosen_p"] == lp.choose(target, rec["subsets"])["chosen_p"]
 
 
-def test_height_descriptor_is_invariant_and_follows_the_start_point() -> None:
-    """``eval_height_function.heights``: unchanged by rotation, scaling and translation;
-    starting the points elsewhere rolls its rows; the entries lie in [-1, 1]. The traced
-    form (:func:`descriptor`) gives the same matrix for a shape and its mirror image taken
-    with ``mirror=True``, whatever the orientation it was traced in."""
+def test_height_function_benchmark_uses_the_library_distance() -> None:
+    """``eval_height_function``: its descriptor is the library's (traced either way round,
+    mirrored on request) and its all-pairs matrix (each pair once, in parallel) equals the
+    library's pair distance in both directions."""
     hf = pytest.importorskip("eval_height_function")
+    from shapetree.matching._height import height_descriptors, height_distance
+
     rng = np.random.default_rng(3)
-    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
-    r = 1.0 + 0.3 * np.cos(3 * t) + 0.1 * np.sin(5 * t)
-    p = np.stack([r * np.cos(t), r * np.sin(t)], 1)
-    F = hf.heights(p)
-    assert F.shape == (64, 21) and np.abs(F).max() == pytest.approx(1.0)
-    a = 0.9
-    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    assert np.allclose(hf.heights(3.5 * p @ R.T + [4.0, -2.0]), F, atol=1e-12)
-    assert np.allclose(hf.heights(np.roll(p, -11, 0)), np.roll(F, -11, 0), atol=1e-12)
     t = np.linspace(0, 2 * np.pi, 2000, endpoint=False)
     r = 1.0 + 0.3 * np.cos(3 * t) + 0.2 * np.sin(2 * t) * (1 + 0.02 * rng.standard_normal(2000))
     blob = np.stack([r * np.cos(t), 0.7 * r * np.sin(t)], 1)
@@ -329,44 +321,17 @@ def test_height_descriptor_is_invariant_and_follows_the_start_point() -> None:
     B = hf.descriptor(mirrored[::-1])  # traced clockwise, starting elsewhere
     assert min(np.abs(np.roll(B, k, 0) - A).max() for k in range(64)) < 0.1
     assert np.abs(hf.descriptor(blob) - A).max() > 0.2  # the mirror image is another shape
-
-
-def test_height_function_dp_agrees_with_its_oracle() -> None:
-    """``dp_cyclic`` (compiled, abandoning starts early) equals the pure-Python recursion
-    over every start on random cost tables, square and not; matching a shape with itself,
-    or with its mirror image, costs 0, and another shape costs more."""
-    hf = pytest.importorskip("eval_height_function")
-    rng = np.random.default_rng(0)
-    for n, m in ((1, 1), (3, 3), (4, 6), (7, 5), (8, 8)):
-        for _ in range(5):
-            C = rng.random((n, m))
-            pen = float(rng.uniform(0.05, 0.8))
-            assert hf.dp_cyclic(C, pen) == pytest.approx(hf.dp_cyclic_reference(C, pen))
-            # either way round: what lets hf_matrix match each pair once
-            assert hf.dp_cyclic(C.T.copy(), pen) == pytest.approx(hf.dp_cyclic(C, pen))
-    w = hf.group_weights()
-    assert w.sum() == pytest.approx(1.0) and w[0] == pytest.approx(w[-1], rel=0.2)
-    t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
     star = np.stack(
         [(1 + 0.3 * np.cos(3 * t)) * np.cos(t), (1 + 0.3 * np.cos(3 * t)) * np.sin(t)], 1
     )
-    bump = np.stack([(1 + 0.2 * np.cos(t) ** 9) * np.cos(t), np.sin(t)], 1)
-    Fa, Fam = hf.descriptor(bump), hf.descriptor(bump, mirror=True)
-    assert hf.hf_pair(Fa, Fa, Fam, w, hf.SKIP) == pytest.approx(0.0, abs=1e-12)
-    assert hf.hf_pair(Fam, Fa, Fam, w, hf.SKIP) == pytest.approx(0.0, abs=1e-12)
-    Fs, Fsm = hf.descriptor(star), hf.descriptor(star, mirror=True)
-    assert hf.hf_pair(Fa, Fs, Fsm, w, hf.SKIP) > 0.01
-    H = hf.hf_matrix([bump, star, star * 2.0])
+    curves = [blob, star, star * 2.0] + [blob * [1.0, s] for s in (0.6, 1.4)]
+    H = hf.hf_matrix(curves)
     assert H[1, 2] == pytest.approx(0.0, abs=1e-9) and H[0, 1] > 0.01
-    rng_curves = [bump * [1.0, s] + 0.02 * rng.standard_normal(bump.shape) for s in (0.6, 1, 1.4)]
-    curves = [bump, star, *rng_curves]
-    H = hf.hf_matrix(curves)  # each pair once, mirrored; against both directions, one by one
-    F = [hf.descriptor(c) for c in curves]
-    Fm = [hf.descriptor(c, mirror=True) for c in curves]
+    D = [height_descriptors(c, hf.DEFAULT) for c in curves]
     for i in range(len(curves)):
         for j in range(len(curves)):
             if i != j:
-                assert H[i, j] == pytest.approx(hf.hf_pair(F[i], F[j], Fm[j], w, hf.SKIP), rel=1e-9)
+                assert H[i, j] == pytest.approx(height_distance(D[i], D[j], hf.DEFAULT), rel=1e-9)
 
 
 def test_height_function_weight_is_chosen_on_the_other_sets() -> None:

@@ -21,7 +21,7 @@ import psutil
 import pytest
 
 from shapetree import ShapeTreeError
-from shapetree.retrieval import _dask, directed_costs, distance_matrix
+from shapetree.retrieval import _dask, combine, directed_costs, distance_matrix
 
 #: the literal matcher, small samplings: every test here takes about a second
 CFG = dict(config="paper", n_points=20, mirror=True)
@@ -100,6 +100,24 @@ def test_query_database_bitwise_equal(client, symmetrize) -> None:
     got = distance_matrix(q, db, scheduler=client, **kw)
     assert got.shape == (4, 10) and got.dtype == ref.dtype
     assert np.array_equal(got, ref)
+
+
+def test_height_fusion_bitwise_equal(client, tmp_path: Path) -> None:
+    """``height_weight``: the blocks carry a layer of height-function distances, computed
+    on the workers from descriptors sent with the targets; the cluster's matrix (and the
+    cache it writes, read back by the threads) is the threaded one, bit for bit."""
+    curves = _shapes(9, seed=2)
+    kw = dict(CFG, symmetrize="mean", height_weight=0.4, height_points=24, block=2, progress=False)
+    ref = distance_matrix(curves, workers=2, **kw)
+    got = distance_matrix(curves, scheduler=client, cache_dir=tmp_path, **kw)
+    assert np.array_equal(got, ref)
+    stats: dict = {}
+    kw.pop("symmetrize")
+    again = directed_costs(curves, workers=2, cache_dir=tmp_path, stats=stats, **kw)
+    assert stats["blocks_cached"] == stats["blocks"] and again.shape == (3, 9, 9)
+    assert np.array_equal(combine(again, "mean", 0.4), ref)
+    kw["symmetrize"] = "mean"
+    assert np.array_equal(distance_matrix(curves[:3], curves, scheduler=client, **kw), ref[:3])
 
 
 def test_local_cluster_string_starts_and_closes(tmp_path: Path) -> None:

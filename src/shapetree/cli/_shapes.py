@@ -192,9 +192,17 @@ def cmd_match(args: argparse.Namespace) -> int:
     info(f"B: {args.b} ({res.b.shape[0]} points, {kind})")
     info(f"configuration: preset {preset_of(args)} ({config.describe()})")
     info(f"cost: {res.cost:.12g}")
+    if res.height_cost is not None and config.symmetrize == "none":
+        info(f"  psi(A, B) = {res.forward_cost:.12g}")
     if config.symmetrize != "none":
         back = "n/a" if res.backward_cost is None else f"{res.backward_cost:.12g}"
         info(f"  psi(A, B) = {res.forward_cost:.12g}, psi(B, A) = {back} ({config.symmetrize})")
+    if res.height_cost is not None:
+        w = config.height_weight
+        info(
+            f"  = psi^{1 - w:.3g} * h^{w:.3g}, psi the shape-tree cost and "
+            f"h = {res.height_cost:.12g} the height-function distance"
+        )
     if config.n_trees > 1:
         costs = ", ".join(f"{c:.6g}" for c in res.costs)
         rule = "the best" if config.tree_combine == "min" else "the mean of"

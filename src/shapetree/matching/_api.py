@@ -370,7 +370,8 @@ def match(
     -------
     MatchResult
         ``cost`` is the configured distance of the pair (ψ(a, b), or the combination of
-        both directions that ``symmetrize`` asks for), the same number
+        both directions that ``symmetrize`` asks for, fused with the height-function
+        distance ``res.height_cost`` when ``height_weight > 0``), the same number
         :func:`shapetree.retrieval.distance_matrix` gives. The correspondence
         (``a_to_b``, ``b_to_a``, ``replaced``) is that of the cheapest a → b matching, in
         the indices of ``res.a`` (the model's samples, not mirrored) and ``res.b`` (the
@@ -421,7 +422,45 @@ def pair_cost(
     return _configured(a, b, cfg, closed, correspondence=False).cost
 
 
+def height_outline(points: ArrayLike, config: MatchConfig, *, name: str) -> np.ndarray:
+    """The outline the height functions are computed on: validated and smoothed as the
+    shape-tree's curves (:func:`model_curve`), not resampled (closed curves only)."""
+    return _base_curve(points, config, True, name)
+
+
+def fuse_height(psi: ArrayLike, h: ArrayLike, weight: float) -> np.ndarray:
+    """The distance ``ψ^(1 - w) h^w`` of :attr:`MatchConfig.height_weight` (``w = 0``: ψ;
+    ``w = 1``: ``h``; negative rounding errors of ψ count as 0)."""
+    psi = np.maximum(np.asarray(psi, dtype=np.float64), 0.0)
+    h = np.asarray(h, dtype=np.float64)
+    if weight == 0:
+        return psi
+    if weight == 1:
+        return h.copy()
+    return psi ** (1.0 - weight) * h**weight
+
+
 def _configured(
+    a: ArrayLike, b: ArrayLike, cfg: MatchConfig, closed: bool, *, correspondence: bool
+) -> MatchResult:
+    if cfg.height_weight > 0 and not closed:
+        raise ShapeTreeError(
+            "height_weight > 0 fuses the height-function distance, which is defined for "
+            "closed curves only: use closed=True or height_weight=0"
+        )
+    res = _shape_tree(a, b, cfg, closed, correspondence=correspondence)
+    if cfg.height_weight > 0:
+        from shapetree.matching._height import HeightParams, height_descriptors, height_distance
+
+        hp = HeightParams.of(cfg.height_points)
+        da = height_descriptors(height_outline(a, cfg, name="curve A"), hp)
+        db = height_descriptors(height_outline(b, cfg, name="curve B"), hp)
+        res.height_cost = height_distance(da, db, hp)
+        res.cost = float(fuse_height(res.cost, res.height_cost, cfg.height_weight))
+    return res
+
+
+def _shape_tree(
     a: ArrayLike, b: ArrayLike, cfg: MatchConfig, closed: bool, *, correspondence: bool
 ) -> MatchResult:
     sym = cfg.symmetrize

@@ -101,7 +101,8 @@ class MatchResult:
     ----------
     cost : float
         ψ(A, B) (over the shape-trees tried: the minimum, or their mean with
-        ``tree_combine="mean"``).
+        ``tree_combine="mean"``); from :func:`shapetree.matching.match`, the configured
+        distance of the pair (``symmetrize``, ``height_weight``).
     a, b : ndarray, shape (n, 2) and (m, 2)
         The matched sample points.
     closed : bool
@@ -126,6 +127,9 @@ class MatchResult:
         Which target phase gave the cost (``b`` holds that sampling).
     forward_cost, backward_cost : float
         ψ(A, B), and ψ(B, A) when the configuration's ``symmetrize`` needed it.
+    height_cost : float or None
+        The height-function distance ``h(A, B)`` when ``height_weight > 0`` (then
+        ``cost = ψ^(1 - w) h^w``).
     """
 
     cost: float
@@ -141,6 +145,7 @@ class MatchResult:
     phase: int = 0
     forward_cost: float = float("nan")
     backward_cost: float | None = None
+    height_cost: float | None = None
 
     def pairs(self) -> np.ndarray:
         """Matched point pairs ``(x_a, y_a, x_b, y_b)`` for every non-replaced ``A`` point."""

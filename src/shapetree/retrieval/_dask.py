@@ -369,18 +369,23 @@ def _check_code(fingerprint: str) -> None:
 
 def _block_task(
     models: list[np.ndarray],
-    targets: list[list[np.ndarray]],
+    shared: tuple[list[list[np.ndarray]], list | None],
     config: Any,
+    row_heights: list | None,
     fingerprint: str,
     rows: tuple[int, int],
     topic: str | None,
 ) -> np.ndarray:
-    """One row block on a worker: ``_compute_block(models, targets, config)``, after
-    checking that the worker runs the client's code. Pure (same arguments, same array)."""
+    """One row block on a worker: ``_compute_block(models, targets, config, heights)``,
+    after checking that the worker runs the client's code. ``shared``: the targets and
+    their height descriptors (scattered once); ``row_heights``: the block's models'.
+    Pure (same arguments, same array)."""
     from shapetree.retrieval._engine import _compute_block
 
     _check_code(fingerprint)
-    return _compute_block(models, targets, config, _progress_tick(topic, rows))
+    targets, col_heights = shared
+    heights = None if row_heights is None else (row_heights, col_heights)
+    return _compute_block(models, targets, config, _progress_tick(topic, rows), heights)
 
 
 def _knn_task(
@@ -414,6 +419,7 @@ def run_blocks(
     key: str,
     on_block: Callable[[int, int, np.ndarray], None],
     bar: Any = None,
+    heights: tuple[list, list] | None = None,
 ) -> None:
     """Compute row blocks on the cluster, handing each to ``on_block`` as it finishes.
 
@@ -430,10 +436,14 @@ def run_blocks(
     key : str
         The engine's cache key (names the tasks, so equal work has equal keys).
     on_block : callable
-        ``on_block(r0, r1, arr)`` with ``arr`` of shape (n_pass, r1 - r0, len(targets)),
+        ``on_block(r0, r1, arr)`` with ``arr`` of shape (layers, r1 - r0, len(targets))
+        (:func:`shapetree.retrieval._engine.n_layers`),
         called in this thread in order of completion.
     bar : tqdm, optional
         Progress bar counting pairs; running blocks' reports and finished blocks move it.
+    heights : (list, list), optional
+        The height descriptors of the models and the targets (``height_weight > 0``);
+        the targets' are scattered with the targets.
 
     Raises
     ------
@@ -441,11 +451,17 @@ def run_blocks(
         A task failed (its error, a worker mismatch, or workers killed by it too often).
     """
     m = len(targets)
+    rows_h, cols_h = heights if heights is not None else (None, None)
     run_tasks(
         scheduler,
         _block_task,
-        targets,
-        lambda r0, r1, shared: (models[r0:r1], shared, config),
+        (targets, cols_h),
+        lambda r0, r1, shared: (
+            models[r0:r1],
+            shared,
+            config,
+            None if rows_h is None else rows_h[r0:r1],
+        ),
         todo,
         name=f"shapetree-block-{key[:24]}",
         on_result=on_block,

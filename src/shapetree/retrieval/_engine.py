@@ -66,6 +66,28 @@ def _prep_targets(
     return [target_curves(c, config, closed=True, name=f"{what} {i}") for i, c in enumerate(curves)]
 
 
+def _prep_heights(curves: Any, config: MatchConfig, what: str) -> list | None:
+    """The height descriptors (plain, mirrored) of every curve when ``height_weight > 0``
+    (from a :class:`ShapeIndex`'s stored outlines), else ``None``."""
+    if config.height_weight == 0:
+        return None
+    from shapetree.matching._api import height_outline
+    from shapetree.matching._height import HeightParams, height_descriptors
+
+    hp = HeightParams.of(config.height_points)
+    outlines = curves.outlines if isinstance(curves, ShapeIndex) else curves
+    return [
+        height_descriptors(height_outline(c, config, name=f"{what} {i}"), hp)
+        for i, c in enumerate(outlines)
+    ]
+
+
+def n_layers(config: MatchConfig) -> int:
+    """Layers of a block of :func:`directed_costs`: one per pass (plain, mirrored), and a
+    last one of height-function distances when ``height_weight > 0``."""
+    return config.n_pass + (config.height_weight > 0)
+
+
 def _source(curves: Any) -> Any:
     """A database file name (str or path-like) is read as a :class:`ShapeIndex`."""
     if isinstance(curves, str | os.PathLike):
@@ -181,9 +203,27 @@ def _compute_block(
     targets: list[list[np.ndarray]],
     config: MatchConfig,
     tick=None,
+    heights: tuple[list, list] | None = None,
 ) -> np.ndarray:
     """Directed costs of ``models`` (rows) against every target (given at each of its
-    phases, the cheapest phase kept): shape (n_pass, r, m)."""
+    phases, the cheapest phase kept): shape (n_pass, r, m); with ``heights`` (the rows'
+    and the targets' height descriptors) a last layer of height-function distances,
+    shape (n_pass + 1, r, m)."""
+    psi = _shape_tree_block(models, targets, config, tick)
+    if heights is None:
+        return psi
+    from shapetree.matching._height import HeightParams, height_matrix
+
+    h = height_matrix(heights[0], heights[1], HeightParams.of(config.height_points))
+    return np.concatenate([psi, h[None]], axis=0)
+
+
+def _shape_tree_block(
+    models: list[np.ndarray],
+    targets: list[list[np.ndarray]],
+    config: MatchConfig,
+    tick=None,
+) -> np.ndarray:
     mp = kernel_params(config)
     per_model = [model_passes(a, config) for a in models]
     passes = [[pm[p] for pm in per_model] for p in range(config.n_pass)]
@@ -270,8 +310,10 @@ def directed_costs(
 
     Returns
     -------
-    ndarray, shape (n_pass, n_models, n_targets)
-        ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``).
+    ndarray, shape (layers, n_models, n_targets)
+        ``[0]`` plain costs; ``[1]`` costs of the mirrored models (when ``mirror``); with
+        ``height_weight > 0`` a last layer of height-function distances
+        (:func:`n_layers`; :func:`combine` fuses them).
     """
     sched, owned = _check_scheduler(scheduler)
     try:
@@ -329,6 +371,8 @@ def _directed_costs(
         raise ShapeTreeError(f"block must be an integer >= 1 or None, got {block!r}")
     ms = _prep_models(models, cfg, "model curve")
     tv = _prep_targets(models if targets is None else targets, cfg, "target curve")
+    hr = _prep_heights(models, cfg, "model curve")
+    hc = hr if targets is None else _prep_heights(targets, cfg, "target curve")
     n, m = len(ms), len(tv)
     if n == 0 or m == 0:
         raise ShapeTreeError(f"need at least one model and one target, got {n} and {m}")
@@ -336,7 +380,8 @@ def _directed_costs(
         threads = int(workers) if sched is None else sched.n_threads()
         block = min(32, -(-n // (4 * threads)))
     block = int(block)
-    out = np.empty((cfg.n_pass, n, m))
+    layers = n_layers(cfg)
+    out = np.empty((layers, n, m))
     ranges = [(r0, min(n, r0 + block)) for r0 in range(0, n, block)]
     folder = None
     key = _cache_key(ms, tv, cfg)
@@ -349,7 +394,7 @@ def _directed_costs(
             atomic_write_bytes(info, json.dumps(spec, indent=1).encode(), fsync=False)
 
     def meta(r0: int, r1: int) -> dict:
-        return {"key": key, "rows": [r0, r1], "shape": [cfg.n_pass, r1 - r0, m]}
+        return {"key": key, "rows": [r0, r1], "shape": [layers, r1 - r0, m]}
 
     todo = []
     for r0, r1 in ranges:
@@ -376,7 +421,8 @@ def _directed_costs(
                 bar.update(k)
 
     def job(r0: int, r1: int) -> tuple[int, int, np.ndarray]:
-        arr = _compute_block(ms[r0:r1], tv, cfg, tick)
+        heights = None if hr is None else (hr[r0:r1], hc)
+        arr = _compute_block(ms[r0:r1], tv, cfg, tick, heights)
         if folder is not None:
             write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
         return r0, r1, arr
@@ -390,7 +436,17 @@ def _directed_costs(
         if sched is not None and todo:
             from shapetree.retrieval._dask import run_blocks
 
-            run_blocks(sched, ms, tv, cfg, todo, key=key, on_block=store, bar=bar)
+            run_blocks(
+                sched,
+                ms,
+                tv,
+                cfg,
+                todo,
+                key=key,
+                on_block=store,
+                bar=bar,
+                heights=None if hr is None else (hr, hc),
+            )
         elif int(workers) <= 1 or len(todo) <= 1:
             for r0, r1 in todo:
                 _, _, arr = job(r0, r1)
@@ -424,23 +480,37 @@ def _directed_costs(
     return out
 
 
-def combine(costs: np.ndarray, symmetrize: str | None = "min") -> np.ndarray:
+def combine(
+    costs: np.ndarray, symmetrize: str | None = "min", height_weight: float = 0.0
+) -> np.ndarray:
     """Turn directed costs into a distance matrix.
 
     Parameters
     ----------
-    costs : ndarray, shape (n_pass, n, n)
+    costs : ndarray, shape (layers, n, n)
         From :func:`directed_costs` of a set against itself; passes are reduced by ``min``.
     symmetrize : {"none", "min", "mean", "max", "reverse"} or None
         ``D = min(C, C.T)`` / ``(C + C.T) / 2`` / ``max``; ``"none"`` keeps
         ``D[i, j] = ψ(i, j)`` (query ``i`` deformed onto ``j``); ``"reverse"`` uses
         ``D[i, j] = ψ(j, i)``.
+    height_weight : float
+        The configuration's ``height_weight``: when positive, the last layer of ``costs``
+        holds the height-function distances ``h`` and ``D = ψ^(1 - w) h^w``.
 
     Returns
     -------
     ndarray, shape (n, n)
     """
     c = np.asarray(costs)
+    if height_weight:
+        if c.ndim != 3 or c.shape[0] < 2:
+            raise ShapeTreeError(
+                "height_weight > 0 needs the costs of directed_costs under that "
+                f"configuration (passes, then a layer of height distances), got {c.shape}"
+            )
+        from shapetree.matching._api import fuse_height
+
+        return fuse_height(combine(c[:-1], symmetrize), c[-1], height_weight)
     if c.ndim == 3:
         c = c.min(axis=0)
     s = "none" if symmetrize is None else str(symmetrize)
@@ -550,20 +620,34 @@ def _distance_matrix(
     cfg = _resolve(config, options, curves, targets)
     s = cfg.symmetrize
     kw["scheduler"] = sched
+    w = cfg.height_weight
     if targets is None:
-        return combine(directed_costs(curves, None, cfg, **kw), s)
+        return combine(directed_costs(curves, None, cfg, **kw), s, w)
+    h = None
     if s != "reverse":
-        fwd = directed_costs(curves, targets, cfg, desc="queries->database", **kw).min(axis=0)
-        if s == "none":
-            return fwd
-    bwd = directed_costs(targets, curves, cfg, desc="database->queries", **kw).min(axis=0).T
-    if s == "reverse":
-        return bwd.copy()
-    if s == "min":
-        return np.minimum(fwd, bwd)
-    if s == "mean":
-        return 0.5 * (fwd + bwd)
-    return np.maximum(fwd, bwd)
+        fwd = directed_costs(curves, targets, cfg, desc="queries->database", **kw)
+        fwd, h = (fwd[:-1], fwd[-1]) if w else (fwd, None)
+        fwd = fwd.min(axis=0)
+    if s != "none":
+        bwd = directed_costs(targets, curves, cfg, desc="database->queries", **kw)
+        bwd, hb = (bwd[:-1], bwd[-1].T) if w else (bwd, None)
+        bwd = bwd.min(axis=0).T
+        h = hb if h is None else h
+    if s == "none":
+        d = fwd
+    elif s == "reverse":
+        d = bwd.copy()
+    elif s == "min":
+        d = np.minimum(fwd, bwd)
+    elif s == "mean":
+        d = 0.5 * (fwd + bwd)
+    else:
+        d = np.maximum(fwd, bwd)
+    if not w:
+        return d
+    from shapetree.matching._api import fuse_height
+
+    return fuse_height(d, h, w)
 
 
 def search(

@@ -242,7 +242,7 @@ def _distances(
     )
     if arrays is not None:
         arrays.update(costs=costs, labels=labels)
-    return combine(costs, cfg.symmetrize)
+    return combine(costs, cfg.symmetrize, cfg.height_weight)
 
 
 def _scores(

@@ -61,6 +61,7 @@ import hashlib
 import json
 import os
 import struct
+import tokenize
 import zipfile
 import zlib
 from collections.abc import Sequence
@@ -94,6 +95,8 @@ _READ_ERRORS = (
     zlib.error,
     struct.error,
     UnicodeDecodeError,
+    SyntaxError,
+    tokenize.TokenError,  # numpy's parser of a damaged .npy header (not a ValueError)
 )
 
 

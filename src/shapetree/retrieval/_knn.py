@@ -340,11 +340,22 @@ def lower_bounds(
     """
     queries, database = _source(queries), _source(database)
     cfg = _resolve(config, options, queries, database)
+    _check_no_height(cfg, "lower_bounds")
     workers = _check_int("workers", workers, 1)
     if len(queries) == 0 or len(database) == 0:
         raise ShapeTreeError("lower_bounds needs at least one query and one database curve")
     pairs = _Pairs(*_prepared(queries, database, cfg), cfg, *_keep(cfg, keep_from, keep_top))
     return pairs.bounds(range(len(queries)), workers)
+
+
+def _check_no_height(cfg: MatchConfig, what: str) -> None:
+    """The pruned search bounds the shape-tree cost ψ alone: refuse ``height_weight``."""
+    if cfg.height_weight > 0:
+        raise ShapeTreeError(
+            f"{what} (the pruned nearest-neighbour search) bounds the shape-tree cost alone "
+            "and does not support height_weight > 0: compute the full distance matrix "
+            "instead (distance_matrix, or `shapetree distances` without --neighbours)"
+        )
 
 
 def _knn_rows(
@@ -523,6 +534,7 @@ def knn(
     t_start = time.perf_counter()
     queries, database = _source(queries), _source(database)
     cfg = _resolve(config, options, queries, database)
+    _check_no_height(cfg, "knn")
     workers = _check_int("workers", workers, 1)
     k = _check_int("k", k, 1)
     keep_from, keep_top = _keep(cfg, keep_from, keep_top)
