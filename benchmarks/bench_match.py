@@ -37,6 +37,12 @@ the same run and with the same band):
 
 ``python benchmarks/bench_match.py --options-only`` measures only these and updates the
 ``options`` entry of the existing JSON.
+
+The height-function fusion (``MatchConfig.height_weight``; ``--height-only`` measures only
+it and updates the ``height`` entry): ``distance_matrix`` of 24 random closed shapes against
+themselves (576 ordered pairs, the two cores' threads, float32, the ``n64 T3 none tmean``
+base of ``eval_height_variants.py``, no cache), without the fusion and with it at
+``height_points`` 64 and 100; ``x`` is the time over the base's in the same run.
 """
 
 from __future__ import annotations
@@ -173,6 +179,38 @@ def option_rows(sizes: list[int], repeats: int) -> list[dict]:
     return rows
 
 
+def height_rows(repeats: int, n_shapes: int = 24) -> list[dict]:
+    """Timings of the height-function fusion against the shape-tree matrix alone (module
+    docstring)."""
+    from shapetree.matching import MatchConfig
+    from shapetree.retrieval import distance_matrix
+
+    rng = np.random.default_rng(64)
+    curves = [shape(rng, 200) for _ in range(n_shapes)]
+    base = MatchConfig(n_points=64, n_trees=3, tree_combine="mean", length_power=1.0, phases=1)
+    cfgs = {"psi alone": base}
+    cfgs.update({f"fused, h at {n}": base.replace(height_weight=0.5, height_points=n)
+                 for n in (64, 100)})  # fmt: skip
+    for cfg in cfgs.values():  # compile
+        distance_matrix(curves[:3], config=cfg, progress=False)
+    rows = []
+    for label, cfg in cfgs.items():
+        s = time_once(lambda cfg=cfg: distance_matrix(curves, config=cfg, progress=False), repeats)
+        rows.append({"label": label, "height_points": cfg.height_points if cfg.height_weight
+                     else None, "seconds": s, "ms_per_pair": 1e3 * s / n_shapes**2})  # fmt: skip
+    for r in rows:
+        r["over_psi_alone"] = r["seconds"] / rows[0]["seconds"]
+    return rows
+
+
+def print_height(rows: list[dict]) -> None:
+    print("Height-function fusion, distance_matrix of 24 shapes (576 pairs), 2 threads (medians)")
+    print(f"{'':18s} {'s':>7} {'ms/pair':>8} {'x':>6}")
+    for r in rows:
+        print(f"{r['label']:18s} {r['seconds']:>7.2f} {r['ms_per_pair']:>8.2f} "
+              f"{r['over_psi_alone']:>6.2f}")  # fmt: skip
+
+
 def print_options(rows: list[dict]) -> None:
     print("Issue-15 options, one closed pair, one matching, float64 (medians; x = / directed)")
     print(
@@ -207,10 +245,23 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="only the issue-15 options; update the 'options' entry of the existing JSON",
     )
+    ap.add_argument(
+        "--height-only",
+        action="store_true",
+        help="only the height-function fusion; update the 'height' entry of the existing JSON",
+    )
     args = ap.parse_args(argv)
     rng = np.random.default_rng(0)
     reps = 3 if args.quick else 7
     command = "python benchmarks/bench_match.py" + (" " + " ".join(argv) if argv else "")
+    if args.height_only:
+        rows = height_rows(3)
+        print_height(rows)
+        out = json.loads(args.json.read_text()) if args.json.exists() else {}
+        out["height"] = {"command": command, "machine": machine(), "rows": rows}
+        write_json(args.json, out)
+        print(f"wrote {args.json}")
+        return 0
     if args.options_only:
         opt = option_rows(args.option_sizes, reps)
         print_options(opt)
@@ -348,6 +399,10 @@ def main(argv: list[str] | None = None) -> int:
         earlier = json.loads(args.json.read_text()).get("options")
         if earlier is not None:
             out["options"] = earlier
+    if args.json.exists():  # measured only with --height-only: keep it
+        earlier = json.loads(args.json.read_text()).get("height")
+        if earlier is not None:
+            out["height"] = earlier
     write_json(args.json, out)
     print(f"wrote {args.json}")
     return 0

@@ -369,3 +369,58 @@ def test_height_function_matrix_is_cached_by_its_curves(tmp_path: Path) -> None:
     assert np.allclose(H, hf.hf_matrix(curves))
     hf.cached_hf_matrix(curves[:2], tmp_path)
     assert len(list(tmp_path.glob("height_function_*.npy"))) == 2
+
+
+def test_height_variants_forms_are_the_library_option() -> None:
+    """``eval_height_variants``: the harmonic forms are ``MatchConfig.height_points``'s own
+    parameters, so a chosen ``(form, w)`` is the library's ``height_weight = w,
+    height_points = n`` on the base configuration: the benchmark's fused matrix equals
+    ``distance_matrix``'s. The grid starts with ``w = 0`` and every value parses back."""
+    hv = pytest.importorskip("eval_height_variants")
+    from shapetree.matching._height import HeightParams
+    from shapetree.retrieval import combine, directed_costs, distance_matrix
+
+    assert hv.GRID[0] == hv.OFF and hv.parse(hv.OFF) == (None, 0.0)
+    for value in hv.GRID[1:]:
+        hp, w = hv.parse(value)
+        assert value == f"{hv.hf.label(hp)} w={w}"
+    for n in (64, 100):
+        assert hv.FORMS[f"n{n} g{HeightParams.of(n).group} harmonic"] == HeightParams.of(n)
+    rng = np.random.default_rng(4)
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    curves = []
+    for _ in range(6):
+        r = 1 + sum(rng.uniform(-0.2, 0.2) * np.cos(f * t + rng.uniform(0, 6)) for f in (2, 3, 5))
+        curves.append(np.c_[r * np.cos(t) * rng.uniform(0.6, 1.4), r * np.sin(t)])
+    cfg = hv.hf.CONFIG.replace(n_points=16)
+    hp, w = hv.parse("n64 g3 harmonic w=0.4")
+    D = combine(directed_costs(curves, None, cfg, progress=False), "none")
+    want = hv.hf.fuse(D, hv.hf.hf_matrix(curves, hp), w)
+    got = distance_matrix(
+        curves, config=cfg.replace(height_weight=w, height_points=64), progress=False
+    )
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-15)
+
+
+def test_height_variants_committed_choices_follow_the_rules() -> None:
+    """The committed ``beyond_paper_height_variants.json``: each target's value is the
+    best mean rank on the other two sets' subsets (ties to the earlier grid value), and
+    Kimia-99's leave-one-class-out row is the sum of its folds, each fold's value the best
+    on the other eight classes."""
+    hv = pytest.importorskip("eval_height_variants")
+    rec = json.loads((hv._knob.RESULTS / hv.KNOB.json_name).read_text())
+    assert rec["weights"] == list(hv.WEIGHTS) and list(rec["forms"]) == list(hv.FORMS)
+    for target, c in rec["held_out_choice"].items():
+        assert target not in c["selected_on"]
+        assert (
+            c["chosen_form_w"] == hv._knob.choose(hv.KNOB, target, rec["subsets"])["chosen_form_w"]
+        )
+    cv = rec["subsets"]["kimia99"]["class_cv"]
+    folds = cv["folds"].values()
+    assert len(folds) == 9 and all(f["chosen"] in hv.GRID for f in folds)
+    assert np.array_equal(np.sum([f["held_out_row"] for f in folds], axis=0), cv["held_out_row"])
+    assert cv["meets_paper_at_every_rank"] == all(
+        a >= b for a, b in zip(cv["held_out_row"], cv["paper"], strict=True)
+    )
+    for name, run in rec["full_runs"].items():
+        assert run["w"] == hv.parse(rec["held_out_choice"][name]["chosen_form_w"])[1]

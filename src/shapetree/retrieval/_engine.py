@@ -208,41 +208,34 @@ def _compute_block(
     """Directed costs of ``models`` (rows) against every target (given at each of its
     phases, the cheapest phase kept): shape (n_pass, r, m); with ``heights`` (the rows'
     and the targets' height descriptors) a last layer of height-function distances,
-    shape (n_pass + 1, r, m)."""
-    psi = _shape_tree_block(models, targets, config, tick)
-    if heights is None:
-        return psi
-    from shapetree.matching._height import HeightParams, height_matrix
-
-    h = height_matrix(heights[0], heights[1], HeightParams.of(config.height_points))
-    return np.concatenate([psi, h[None]], axis=0)
-
-
-def _shape_tree_block(
-    models: list[np.ndarray],
-    targets: list[list[np.ndarray]],
-    config: MatchConfig,
-    tick=None,
-) -> np.ndarray:
+    shape (n_pass + 1, r, m), computed target by target with the costs (so ``tick``
+    counts a pair once both are done)."""
     mp = kernel_params(config)
     per_model = [model_passes(a, config) for a in models]
     passes = [[pm[p] for pm in per_model] for p in range(config.n_pass)]
-    out = np.empty((len(passes), len(models), len(targets)))
+    n_pass = len(passes)
+    out = np.empty((n_pass + (heights is not None), len(models), len(targets)))
     flat = [mod for ms in passes for mod in ms]
     sizes = {a.shape[0] for a in models}
     tsizes = {b.shape[0] for bs in targets for b in bs}
     # equal sizes (the usual case, n_points set): one kernel call per target for the block
     batched = len(sizes) == len(tsizes) == 1
     stack = ModelStack(flat, next(iter(tsizes)), mp, config.dtype) if batched else None
+    if heights is not None:
+        from shapetree.matching._height import HeightParams, height_matrix
+
+        hp = HeightParams.of(config.height_points)
     for j, versions in enumerate(targets):
-        out[:, :, j] = np.inf
+        out[:n_pass, :, j] = np.inf
         for b in versions:
             t = prepare_target(b, closed=True, length_power=config.length_power, dtype=config.dtype)
             if stack is not None:
-                c = stack.costs(t).reshape(len(passes), len(models))
+                c = stack.costs(t).reshape(n_pass, len(models))
             else:
                 c = np.array([[match_cost(m, t, mp) for m in ms] for ms in passes])
-            np.minimum(out[:, :, j], c, out=out[:, :, j])
+            np.minimum(out[:n_pass, :, j], c, out=out[:n_pass, :, j])
+        if heights is not None:
+            out[n_pass, :, j] = height_matrix(heights[0], [heights[1][j]], hp)[:, 0]
         if tick is not None:
             tick(len(models))
     return out
