@@ -156,38 +156,41 @@ def height_descriptors(curve: np.ndarray, hp: HeightParams) -> tuple[np.ndarray,
 def dp_cyclic(C: np.ndarray, pen: float) -> float:
     """The cheapest order-preserving matching of the rows of ``C`` to its columns, the
     columns taken cyclically from every start: each row and column is matched once or
-    skipped at cost ``pen``; a matched pair ``(i, j)`` costs ``C[i, j]``. A start is
-    abandoned once a whole row of its table costs at least the best so far (exact: costs
-    only grow). O(n m^2) time."""
+    skipped at cost ``pen``; a matched pair ``(i, j)`` costs ``C[i, j]``.
+
+    O(n m^2) time, O(m^2) memory: the tables of all ``m`` starts are filled together, row by
+    row, the start the innermost (contiguous) index, so the compiler vectorises it; each
+    start's table holds the numbers a table of its own would (the same additions in the same
+    order), so the result is exact."""
     n, m = C.shape
-    best = np.inf
     C2 = np.empty((n, 2 * m))  # the columns twice: start s reads C2[:, s : s + m]
     C2[:, :m] = C
     C2[:, m:] = C
-    D = np.empty((n + 1, m + 1))
-    for s in range(m):
-        for j in range(m + 1):
-            D[0, j] = j * pen
-        done = True
-        for i in range(1, n + 1):
-            D[i, 0] = i * pen
-            rmin = D[i, 0]
-            for j in range(1, m + 1):
-                v = D[i - 1, j - 1] + C2[i - 1, j - 1 + s]
-                a = D[i - 1, j] + pen
+    prev = np.empty((m + 1, m))  # prev[j, s]: row i - 1 of start s's table
+    cur = np.empty((m + 1, m))
+    for j in range(m + 1):
+        for s in range(m):
+            prev[j, s] = j * pen
+    for i in range(1, n + 1):
+        for s in range(m):
+            cur[0, s] = i * pen
+        row = C2[i - 1]
+        for j in range(1, m + 1):
+            diag, up, left, out = prev[j - 1], prev[j], cur[j - 1], cur[j]
+            for s in range(m):
+                v = diag[s] + row[j - 1 + s]
+                a = up[s] + pen
                 if a < v:
                     v = a
-                b = D[i, j - 1] + pen
+                b = left[s] + pen
                 if b < v:
                     v = b
-                D[i, j] = v
-                if v < rmin:
-                    rmin = v
-            if rmin >= best:
-                done = False
-                break
-        if done and D[n, m] < best:
-            best = D[n, m]
+                out[s] = v
+        prev, cur = cur, prev
+    best = np.inf
+    for s in range(m):
+        if prev[m, s] < best:
+            best = prev[m, s]
     return best
 
 
