@@ -116,6 +116,11 @@ def hf_matrix(curves: list[np.ndarray], hp: HeightParams = DEFAULT) -> np.ndarra
     return _hf_rows(F, Fm, hp.weights(), float(hp.skip))
 
 
+#: the code the cached matrices depend on, read once at import: a file edited while a long
+#: run is under way must not change (or break) that run's key
+_CODE_KEY = (inspect.getsource(_height) + inspect.getsource(_hf_rows.py_func)).encode()
+
+
 def cached_hf_matrix(
     curves: list[np.ndarray], cache: Path, hp: HeightParams = DEFAULT
 ) -> np.ndarray:
@@ -123,8 +128,7 @@ def cached_hf_matrix(
     the distance's code, written atomically, so a rerun (or a run killed after it) reads
     it back instead of recomputing it (6 min for MPEG-7 on the two cores at 64 points)."""
     h = hashlib.sha256(repr((sorted(asdict(hp).items()), len(curves))).encode())
-    h.update(inspect.getsource(_height).encode())
-    h.update(inspect.getsource(_hf_rows.py_func).encode())
+    h.update(_CODE_KEY)
     for c in curves:
         h.update(np.ascontiguousarray(c, dtype=np.float64).tobytes())
     path = cache / f"height_function_{h.hexdigest()[:20]}.npy"
