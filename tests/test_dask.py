@@ -194,7 +194,7 @@ def test_resume_across_engines(client, tmp_path: Path) -> None:
 def test_worker_with_other_code_is_refused() -> None:
     curves = [np.c_[np.cos(t), np.sin(t)] for t in [np.linspace(0, 6.2, 20)]]
     with pytest.raises(ShapeTreeError, match="other shapetree code"):
-        _dask._block_task(curves, [curves], None, "0" * 64, (0, 1), None)
+        _dask._block_task(curves, ([curves], None), None, None, "0" * 64, (0, 1), None)
 
 
 def test_failing_task_is_named(client) -> None:

@@ -32,12 +32,12 @@ def test_every_module_with_a_cached_kernel_is_hashed() -> None:
 def test_shapetree_kernels_use_the_stamped_locator() -> None:
     from shapetree.detection import _stitch
     from shapetree.geometry import _dif
-    from shapetree.matching import _bound, _kernels, _subcurves
+    from shapetree.matching import _bound, _height, _kernels, _subcurves
 
     assert _numba_cache.install()  # idempotent: already installed by _dif
     h = _numba_cache.kernel_sources_hash()
     assert len(h) == 64
-    for mod in (_dif, _kernels, _bound, _subcurves, _stitch):
+    for mod in (_dif, _kernels, _bound, _subcurves, _height, _stitch):
         jitted = [
             f for f in vars(mod).values() if getattr(getattr(f, "_cache", None), "_impl", None)
         ]

@@ -41,6 +41,7 @@ KERNEL_MODULES = (
     "matching/_kernels.py",
     "matching/_bound.py",
     "matching/_subcurves.py",
+    "matching/_height.py",
     "detection/_stitch.py",
     "detection/_template.py",
     "detection/_boundary.py",
