@@ -166,11 +166,12 @@ def choose(target: str, subsets: dict[str, dict[str, Any]]) -> dict[str, Any]:
     return _knob.choose(KNOB, target, subsets)
 
 
-def full_score(name: str, w: float, cache: Path) -> dict[str, Any]:
-    """The base configuration's full-set score without and with the fusion weight ``w``."""
+def full_score(name: str, w: float, cache: Path, hp: HeightParams = DEFAULT) -> dict[str, Any]:
+    """The base configuration's full-set score without and with the fusion weight ``w``
+    (of the height-function form ``hp``)."""
     curves, labels, D, seconds = _knob.full_base(name, CONFIG, cache)
     t0 = time.perf_counter()
-    H = cached_hf_matrix(curves, cache)
+    H = cached_hf_matrix(curves, cache, hp)
     seconds_hf = time.perf_counter() - t0
     rec = {
         "without": protocol_score(name, D, labels, PROTOCOL),

@@ -56,7 +56,6 @@ import eval_beyond as base  # noqa: E402
 import eval_height_function as hf  # noqa: E402
 import kimia_cv  # noqa: E402
 
-from shapetree._bench import protocol_score  # noqa: E402
 from shapetree.matching._height import HeightParams  # noqa: E402
 from shapetree.retrieval import combine, directed_costs  # noqa: E402
 
@@ -146,30 +145,11 @@ def class_cv(matrices: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, A
 
 
 def full_score(name: str, value: str, cache: Path) -> dict[str, Any]:
-    """The base configuration's full-set score without and with the chosen form and weight."""
+    """The base configuration's full-set score without and with the chosen form and weight
+    (``eval_height_function.full_score`` of that form)."""
     hp, w = parse(value)
     assert hp is not None
-    curves, labels, D, seconds = _knob.full_base(name, hf.CONFIG, cache)
-    t0 = time.perf_counter()
-    H = hf.cached_hf_matrix(curves, cache, hp)
-    seconds_hf = time.perf_counter() - t0
-    rec = {
-        "without": protocol_score(name, D, labels, _knob.PROTOCOL),
-        "with": protocol_score(name, hf.fuse(D, H, w), labels, _knob.PROTOCOL),
-        "height_function_alone": protocol_score(name, H, labels, _knob.PROTOCOL),
-        "form": asdict(hp),
-        "w": w,
-        "seconds_matrix_this_run": round(seconds, 1),  # ~0 when read from the cache
-        "seconds_height_function": round(seconds_hf, 1),
-    }
-    if name == "mpeg7":
-        a, b = rec["without"]["bullseye_per_class"], rec["with"]["bullseye_per_class"]
-        delta = {c: round(b[c] - a[c], 2) for c in a}
-        rec["classes_gain"] = sum(v > 0 for v in delta.values())
-        rec["classes_lose"] = sum(v < 0 for v in delta.values())
-    for k in ("without", "with", "height_function_alone"):
-        _knob.slim(rec[k])
-    return rec
+    return {"form": asdict(hp), **hf.full_score(name, w, cache, hp)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -430,14 +430,9 @@ def height_outline(points: ArrayLike, config: MatchConfig, *, name: str) -> np.n
 
 def fuse_height(psi: ArrayLike, h: ArrayLike, weight: float) -> np.ndarray:
     """The distance ``ψ^(1 - w) h^w`` of :attr:`MatchConfig.height_weight` (``w = 0``: ψ;
-    ``w = 1``: ``h``; negative rounding errors of ψ count as 0)."""
+    ``w = 1``: ``h``, as ``0^0 = 1``; negative rounding errors of ψ count as 0)."""
     psi = np.maximum(np.asarray(psi, dtype=np.float64), 0.0)
-    h = np.asarray(h, dtype=np.float64)
-    if weight == 0:
-        return psi
-    if weight == 1:
-        return h.copy()
-    return psi ** (1.0 - weight) * h**weight
+    return psi ** (1.0 - weight) * np.asarray(h, dtype=np.float64) ** weight
 
 
 def _configured(

@@ -136,8 +136,8 @@ class MatchConfig:
         of a pair is ``ψ^(1 - w) h^w`` with ``w = height_weight`` in [0, 1], ψ the
         shape-tree cost combined as ``symmetrize`` says. 0: ψ alone (the paper); 1: ``h``
         alone. Closed curves only. ``h`` is symmetric and invariant to similarity,
-        start point and mirroring. Time: ``h`` at 100 points adds about half the time of
-        a 64-point, 3-tree ψ (``benchmarks/bench_match.py --height-only``).
+        start point and mirroring. Time: ``h`` at 100 points adds 0.4-0.9 times the time
+        of a 64-point, 3-tree ψ (``benchmarks/bench_match.py --height-only``).
     height_points : int
         Points of each outline (evenly in arc length) the height functions are computed
         on; matters only with ``height_weight > 0``. Time grows as about ``n^3``.

@@ -43,6 +43,7 @@ from shapetree.curves import resample
 
 __all__ = [
     "HeightParams",
+    "HeightRows",
     "dp_cyclic",
     "height_descriptors",
     "height_distance",
@@ -219,14 +220,12 @@ def _pair(fa: np.ndarray, fb: np.ndarray, fb_mirror: np.ndarray, w: np.ndarray, 
 
 
 @njit(cache=True, nogil=True)
-def _block(FA: np.ndarray, FB: np.ndarray, FBm: np.ndarray, w: np.ndarray, skip: float):
+def _column(FA: np.ndarray, fb: np.ndarray, fb_mirror: np.ndarray, w: np.ndarray, skip: float):
     # serial: the retrieval engine runs its row blocks in threads (numba's parallel
     # threading layer must not be entered from several threads at once)
-    r, c = FA.shape[0], FB.shape[0]
-    out = np.empty((r, c))
-    for i in range(r):
-        for j in range(c):
-            out[i, j] = _pair(FA[i], FB[j], FBm[j], w, skip)
+    out = np.empty(FA.shape[0])
+    for i in range(FA.shape[0]):
+        out[i] = _pair(FA[i], fb, fb_mirror, w, skip)
     return out
 
 
@@ -237,17 +236,38 @@ def height_distance(
     return float(_pair(a[0], b[0], b[1], hp.weights(), float(hp.skip)))
 
 
+class HeightRows:
+    """Several outlines' descriptors, stacked once, to be matched against one outline after
+    another (the retrieval engine's row blocks).
+
+    Parameters
+    ----------
+    rows : list of (plain, mirrored) descriptor pairs
+        :func:`height_descriptors` of each row outline.
+    hp : HeightParams
+    """
+
+    def __init__(self, rows: list[tuple[np.ndarray, np.ndarray]], hp: HeightParams) -> None:
+        self.FA = np.stack([d[0] for d in rows]) if rows else np.empty((0, hp.n_points, 0))
+        self.w = hp.weights()
+        self.skip = float(hp.skip)
+
+    def against(self, col: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """``(len(rows),)`` distances ``h(row_i, col)`` (compiled; releases the GIL)."""
+        if self.FA.shape[0] == 0:
+            return np.empty(0)
+        return _column(self.FA, col[0], col[1], self.w, self.skip)
+
+
 def height_matrix(
     rows: list[tuple[np.ndarray, np.ndarray]],
     cols: list[tuple[np.ndarray, np.ndarray]],
     hp: HeightParams,
 ) -> np.ndarray:
     """``(len(rows), len(cols))`` height-function distances of outlines given by their
-    :func:`height_descriptors` (compiled; releases the GIL, so blocks may run in
-    threads)."""
-    if not rows or not cols:
-        return np.empty((len(rows), len(cols)))
-    FA = np.stack([d[0] for d in rows])
-    FB = np.stack([d[0] for d in cols])
-    FBm = np.stack([d[1] for d in cols])
-    return _block(FA, FB, FBm, hp.weights(), float(hp.skip))
+    :func:`height_descriptors`."""
+    stack = HeightRows(rows, hp)
+    out = np.empty((len(rows), len(cols)))
+    for j, col in enumerate(cols):
+        out[:, j] = stack.against(col)
+    return out

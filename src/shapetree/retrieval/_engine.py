@@ -222,9 +222,9 @@ def _compute_block(
     batched = len(sizes) == len(tsizes) == 1
     stack = ModelStack(flat, next(iter(tsizes)), mp, config.dtype) if batched else None
     if heights is not None:
-        from shapetree.matching._height import HeightParams, height_matrix
+        from shapetree.matching._height import HeightParams, HeightRows
 
-        hp = HeightParams.of(config.height_points)
+        hrows = HeightRows(heights[0], HeightParams.of(config.height_points))
     for j, versions in enumerate(targets):
         out[:n_pass, :, j] = np.inf
         for b in versions:
@@ -235,7 +235,7 @@ def _compute_block(
                 c = np.array([[match_cost(m, t, mp) for m in ms] for ms in passes])
             np.minimum(out[:n_pass, :, j], c, out=out[:n_pass, :, j])
         if heights is not None:
-            out[n_pass, :, j] = height_matrix(heights[0], [heights[1][j]], hp)[:, 0]
+            out[n_pass, :, j] = hrows.against(heights[1][j])
         if tick is not None:
             tick(len(models))
     return out
@@ -622,10 +622,12 @@ def _distance_matrix(
         fwd, h = (fwd[:-1], fwd[-1]) if w else (fwd, None)
         fwd = fwd.min(axis=0)
     if s != "none":
-        bwd = directed_costs(targets, curves, cfg, desc="database->queries", **kw)
-        bwd, hb = (bwd[:-1], bwd[-1].T) if w else (bwd, None)
+        # h is symmetric: with the forward run's layer in hand, the backward run needs none
+        bcfg = cfg if h is None else cfg.replace(height_weight=0.0)
+        bwd = directed_costs(targets, curves, bcfg, desc="database->queries", **kw)
+        if h is None and w:
+            bwd, h = bwd[:-1], bwd[-1].T
         bwd = bwd.min(axis=0).T
-        h = hb if h is None else h
     if s == "none":
         d = fwd
     elif s == "reverse":
