@@ -44,7 +44,7 @@ import os
 import sys
 import tempfile
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -79,8 +79,8 @@ PROTOCOL = _knob.PROTOCOL
 
 
 def label(hp: HeightParams) -> str:
-    """``"n64 g3 gauss"``."""
-    return f"n{hp.n_points} g{hp.group} {hp.weighting}"
+    """``"n64 g3 gauss"`` (``"n64 g3 gauss +C"`` with the complexity normalisation)."""
+    return f"n{hp.n_points} g{hp.group} {hp.weighting}" + (" +C" if hp.complexity else "")
 
 
 def descriptor(curve: np.ndarray, mirror: bool = False, hp: HeightParams = DEFAULT) -> np.ndarray:
@@ -106,39 +106,70 @@ def _hf_rows(F: np.ndarray, Fm: np.ndarray, w: np.ndarray, skip: float) -> np.nd
     return out
 
 
-def hf_matrix(curves: list[np.ndarray], hp: HeightParams = DEFAULT) -> np.ndarray:
-    """``(N, N)`` height-function distances of traced outlines (zero diagonal), each pair
-    matched once, in parallel (the library's :func:`~shapetree.matching._height.height_matrix`
-    matches every ordered pair, serially, inside the engine's threads)."""
-    D = [_height.height_descriptors(as_curve(c, closed=True), hp) for c in curves]
+def _descriptors(curves: list[np.ndarray], hp: HeightParams) -> list:
+    return [_height.height_descriptors(as_curve(c, closed=True), hp) for c in curves]
+
+
+def _raw_matrix(D: list, hp: HeightParams) -> np.ndarray:
     F = np.stack([d[0] for d in D])
     Fm = np.stack([d[1] for d in D])
     return _hf_rows(F, Fm, hp.weights(), float(hp.skip))
 
 
-#: the code the cached matrices depend on, read once at import: a file edited while a long
-#: run is under way must not change (or break) that run's key
-_CODE_KEY = (inspect.getsource(_height) + inspect.getsource(_hf_rows.py_func)).encode()
+def normalise(H: np.ndarray, D: list, hp: HeightParams) -> np.ndarray:
+    """``H[i, j] / (C_i + C_j)`` (the library's complexity normalisation, the same numbers
+    as :class:`~shapetree.matching._height.HeightRows`) when ``hp.complexity``, else ``H``."""
+    if not hp.complexity:
+        return H
+    C = np.array([_height.complexity(d) for d in D])
+    return H / np.maximum(C[:, None] + C[None, :], _height.MIN_COMPLEXITY)
+
+
+def hf_matrix(curves: list[np.ndarray], hp: HeightParams = DEFAULT) -> np.ndarray:
+    """``(N, N)`` height-function distances of traced outlines (zero diagonal), each pair
+    matched once, in parallel (the library's :func:`~shapetree.matching._height.height_matrix`
+    matches every ordered pair, serially, inside the engine's threads)."""
+    D = _descriptors(curves, hp)
+    return normalise(_raw_matrix(D, hp), D, hp)
+
+
+#: the code the cached (unnormalised) matrices depend on, read once at import: a file edited
+#: while a long run is under way must not change (or break) that run's key
+_CODE_KEY = "".join(
+    inspect.getsource(f)
+    for f in (
+        _height.heights,
+        _height.height_descriptors,
+        _height.HeightParams.weights,
+        _height.dp_cyclic.py_func,
+        _height._point_costs.py_func,
+        _height._pair.py_func,
+        _hf_rows.py_func,
+    )
+).encode()
 
 
 def cached_hf_matrix(
     curves: list[np.ndarray], cache: Path, hp: HeightParams = DEFAULT
 ) -> np.ndarray:
-    """:func:`hf_matrix`, kept in ``cache`` under a key of the curves, the parameters and
-    the distance's code, written atomically, so a rerun (or a run killed after it) reads
-    it back instead of recomputing it (6 min for MPEG-7 on the two cores at 64 points)."""
-    h = hashlib.sha256(repr((sorted(asdict(hp).items()), len(curves))).encode())
+    """:func:`hf_matrix`, its unnormalised matrix kept in ``cache`` under a key of the
+    curves, the parameters and the code that computes it, written atomically, so a rerun
+    (or a run killed after it) reads it back instead of recomputing it (6 min for MPEG-7
+    on the two cores at 64 points, 39 at 100)."""
+    raw = replace(hp, complexity=False)
+    h = hashlib.sha256(repr((sorted(asdict(raw).items()), len(curves))).encode())
     h.update(_CODE_KEY)
     for c in curves:
         h.update(np.ascontiguousarray(c, dtype=np.float64).tobytes())
     path = cache / f"height_function_{h.hexdigest()[:20]}.npy"
+    D = _descriptors(curves, hp)
     if path.exists():
-        return np.load(path)
-    H = hf_matrix(curves, hp)
+        return normalise(np.load(path), D, hp)
+    H = _raw_matrix(D, hp)
     with tempfile.NamedTemporaryFile(dir=cache, suffix=".npy", delete=False) as f:
         np.save(f, H)
     os.replace(f.name, path)
-    return H
+    return normalise(H, D, hp)
 
 
 def fuse(D: np.ndarray, H: np.ndarray, w: float) -> np.ndarray:

@@ -374,7 +374,8 @@ def test_height_function_matrix_is_cached_by_its_curves(tmp_path: Path) -> None:
 def test_height_variants_forms_are_the_library_option() -> None:
     """``eval_height_variants``: the harmonic forms are ``MatchConfig.height_points``'s own
     parameters, so a chosen ``(form, w)`` is the library's ``height_weight = w,
-    height_points = n`` on the base configuration: the benchmark's fused matrix equals
+    height_points = n`` (``+C``: ``height_complexity``) on the base configuration: the
+    benchmark's fused matrix equals
     ``distance_matrix``'s. The grid starts with ``w = 0`` and every value parses back."""
     hv = pytest.importorskip("eval_height_variants")
     from shapetree.matching._height import HeightParams
@@ -386,6 +387,9 @@ def test_height_variants_forms_are_the_library_option() -> None:
         assert value == f"{hv.hf.label(hp)} w={w}"
     for n in (64, 100):
         assert hv.FORMS[f"n{n} g{HeightParams.of(n).group} harmonic"] == HeightParams.of(n)
+        assert hv.FORMS[f"n{n} g{HeightParams.of(n).group} harmonic +C"] == HeightParams.of(
+            n, complexity=True
+        )
     rng = np.random.default_rng(4)
     t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
     curves = []
@@ -393,13 +397,13 @@ def test_height_variants_forms_are_the_library_option() -> None:
         r = 1 + sum(rng.uniform(-0.2, 0.2) * np.cos(f * t + rng.uniform(0, 6)) for f in (2, 3, 5))
         curves.append(np.c_[r * np.cos(t) * rng.uniform(0.6, 1.4), r * np.sin(t)])
     cfg = hv.hf.CONFIG.replace(n_points=16)
-    hp, w = hv.parse("n64 g3 harmonic w=0.4")
     D = combine(directed_costs(curves, None, cfg, progress=False), "none")
-    want = hv.hf.fuse(D, hv.hf.hf_matrix(curves, hp), w)
-    got = distance_matrix(
-        curves, config=cfg.replace(height_weight=w, height_points=64), progress=False
-    )
-    assert np.allclose(got, want, rtol=1e-12, atol=1e-15)
+    for value in ("n64 g3 harmonic w=0.4", "n64 g3 harmonic +C w=0.6"):
+        hp, w = hv.parse(value)
+        want = hv.hf.fuse(D, hv.hf.hf_matrix(curves, hp), w)
+        lib = cfg.replace(height_weight=w, height_points=64, height_complexity=hp.complexity)
+        got = distance_matrix(curves, config=lib, progress=False)
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-15)
 
 
 def test_height_variants_committed_choices_follow_the_rules() -> None:

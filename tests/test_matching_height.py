@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,9 @@ from shapetree.matching import MatchConfig, match
 from shapetree.matching._api import pair_cost
 from shapetree.matching._height import (
     HeightParams,
+    complexity,
     dp_cyclic,
+    group_starts,
     height_descriptors,
     height_distance,
     height_matrix,
@@ -61,13 +65,15 @@ def test_kernel_equals_the_pure_python_oracle() -> None:
     point by point, a memoised recursion over every start and both mirror images) on
     random closed curves, for both weightings and several group sizes."""
     rng = np.random.default_rng(0)
-    for n, group, weighting in ((8, 1, "harmonic"), (12, 2, "harmonic"), (13, 3, "gauss")):
-        hp = HeightParams(n, group, weighting)
+    # (n - 1) divisible by the group or not (then the groups come in pairs from both ends)
+    cases = ((8, 1, "harmonic"), (12, 2, "harmonic"), (13, 3, "gauss"), (14, 3, "gauss"))
+    for (n, group, weighting), norm in itertools.product(cases, (False, True)):
+        hp = HeightParams(n, group, weighting, complexity=norm)
         for _ in range(3):
             a, b = _blob(rng), _blob(rng)
             got = height_distance(height_descriptors(a, hp), height_descriptors(b, hp), hp)
             pa, pb = resample(a, n, closed=True), resample(b, n, closed=True)
-            want = reference_height_distance(pa, pb, group, hp.weights(), hp.skip)
+            want = reference_height_distance(pa, pb, group, hp.weights(), hp.skip, norm)
             assert got == pytest.approx(want, rel=1e-12, abs=1e-15)
 
 
@@ -126,6 +132,67 @@ def test_distance_properties() -> None:
     assert H[0, 1] == pytest.approx(0, abs=1e-12) and H[1, 0] == pytest.approx(0, abs=1e-12)
 
 
+def test_distance_is_symmetric_whether_or_not_the_groups_tile() -> None:
+    """``h(A, B) = h(B, A)`` and ``h(A', B') = h(A, B)`` for mirror images ``A', B'`` (to
+    rounding), at 64 points (groups of 3 tile the 63 other points) and at 100 (groups of 5
+    do not tile 99: pairs of groups from both ends), because the mirror's descriptor is the
+    descriptor with its columns reversed and its rows in reverse order."""
+    rng = np.random.default_rng(7)
+    for n in (64, 100, 37):
+        hp = HeightParams.of(n)
+        starts = group_starts(n, hp.group)
+        k = (starts[:, None] + np.arange(hp.group)).ravel()
+        assert sorted(n - k) == sorted(k) and len(set(k.tolist())) == len(k)
+        a, b = _blob(rng, 150), _blob(rng, 150)
+        da, db = height_descriptors(a, hp), height_descriptors(b, hp)
+        f = heights(resample(a, n, closed=True), hp.group)
+        mirror = resample(a, n, closed=True)[::-1] * [-1, 1]
+        assert np.allclose(heights(mirror, hp.group), f[::-1, ::-1], atol=1e-12)
+        ab = height_distance(da, db, hp)
+        assert height_distance(db, da, hp) == pytest.approx(ab, rel=1e-12)
+        am, bm = height_descriptors(a * [-1, 1], hp), height_descriptors(b * [-1, 1], hp)
+        assert height_distance(am, bm, hp) == pytest.approx(ab, rel=1e-12)
+        assert height_distance(am, db, hp) == pytest.approx(height_distance(da, bm, hp))
+
+
+def test_complexity_normalisation() -> None:
+    """The shape complexity is ~0 for a circle, larger for a wavier outline, invariant to
+    similarity, start point, direction and mirroring; the normalised distance is
+    ``h / (C(A) + C(B))``, symmetric, and ~0 (not rounding / rounding) for two circles; the engine's
+    matrix holds the pair API's numbers."""
+    hp = HeightParams.of(64, complexity=True)
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    circle = np.c_[np.cos(t), np.sin(t)]
+    d_circle = height_descriptors(circle, hp)
+    assert complexity(d_circle) < 1e-9
+    assert height_distance(d_circle, height_descriptors(2 * circle + 1, hp), hp) < 1e-12
+    bump, star = _bump(), _star()
+    cb, cs = complexity(height_descriptors(bump, hp)), complexity(height_descriptors(star, hp))
+    assert 0.05 < cb < cs < 1.0
+    a = 1.1
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    for copy in (3 * star @ R.T - 2, star * [-1, 1]):  # the same samples: exact
+        assert complexity(height_descriptors(copy, hp)) == pytest.approx(cs, rel=1e-9)
+    for copy in (np.roll(star, 50, 0), star[::-1]):  # other samples of the same outline
+        assert complexity(height_descriptors(copy, hp)) == pytest.approx(cs, rel=1e-3)
+    raw = HeightParams.of(64)
+    db, ds = height_descriptors(bump, hp), height_descriptors(star, hp)
+    h = height_distance(db, ds, raw)
+    assert height_distance(db, ds, hp) == pytest.approx(h / (cb + cs), rel=1e-12)
+    assert height_distance(ds, db, hp) == pytest.approx(h / (cb + cs), rel=1e-12)
+    H = height_matrix([db, ds], [ds, db, d_circle], hp)
+    assert H[0, 0] == pytest.approx(h / (cb + cs), rel=1e-12)
+    assert H[0, 1] == pytest.approx(0, abs=1e-12) and np.isfinite(H).all()
+    rng = np.random.default_rng(3)
+    curves = [_blob(rng) for _ in range(3)] + [_star(80)]
+    cfg = MatchConfig(n_points=16, height_points=24, height_weight=0.6, height_complexity=True)
+    P = np.array([[match(a, b, cfg).cost for b in curves] for a in curves])
+    assert np.allclose(distance_matrix(curves, config=cfg, progress=False), P, atol=1e-12)
+    plain = cfg.replace(height_complexity=False)
+    r0, r1 = match(curves[0], curves[3], plain), match(curves[0], curves[3], cfg)
+    assert r1.forward_cost == r0.forward_cost and r1.height_cost < r0.height_cost * 3
+
+
 def test_fused_cost_is_the_same_number_everywhere() -> None:
     """With ``height_weight`` the pair API, ``distance_matrix`` (set against itself and
     queries against a database, every ``symmetrize``) and ``combine`` of the engine's
@@ -174,6 +241,8 @@ def test_options_are_validated_and_refused_where_unsupported() -> None:
         MatchConfig(height_weight=float("nan"))
     with pytest.raises(ShapeTreeError, match="height_points"):
         MatchConfig(height_points=4)
+    with pytest.raises(ShapeTreeError, match="height_complexity"):
+        MatchConfig(height_complexity="yes")
     cfg = MatchConfig(n_points=16, height_weight=0.3, height_points=16)
     line = np.c_[np.linspace(0, 1, 20), np.sin(np.linspace(0, 3, 20))]
     with pytest.raises(ShapeTreeError, match="closed curves only"):

@@ -447,7 +447,7 @@ def _configured(
     if cfg.height_weight > 0:
         from shapetree.matching._height import HeightParams, height_descriptors, height_distance
 
-        hp = HeightParams.of(cfg.height_points)
+        hp = HeightParams.of(cfg.height_points, cfg.height_complexity)
         da = height_descriptors(height_outline(a, cfg, name="curve A"), hp)
         db = height_descriptors(height_outline(b, cfg, name="curve B"), hp)
         res.height_cost = height_distance(da, db, hp)

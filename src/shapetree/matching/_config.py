@@ -141,6 +141,11 @@ class MatchConfig:
     height_points : int
         Points of each outline (evenly in arc length) the height functions are computed
         on; matters only with ``height_weight > 0``. Time grows as about ``n^3``.
+    height_complexity : bool
+        Divide ``h(A, B)`` by the sum of the two outlines' shape complexities (Wang et al.'s
+        normalisation: a difference between simple outlines counts for more;
+        :func:`shapetree.matching._height.complexity`); matters only with
+        ``height_weight > 0``. Costs nothing measurable.
     """
 
     n_points: int | None = 50
@@ -163,6 +168,7 @@ class MatchConfig:
     replace_any: bool = False
     height_weight: float = 0.0
     height_points: int = 100
+    height_complexity: bool = False
 
     def __post_init__(self) -> None:
         n = self.n_points
@@ -222,6 +228,10 @@ class MatchConfig:
         hn = self.height_points
         if not (_is_int(hn) and hn >= 8):
             raise ShapeTreeError(f"height_points must be an integer >= 8, got {hn!r}")
+        if not isinstance(self.height_complexity, bool | np.bool_):
+            raise ShapeTreeError(
+                f"height_complexity must be True or False, got {self.height_complexity!r}"
+            )
         if self.matcher == "symmetric":
             bad = [
                 f"{k}={v!r}"
@@ -268,6 +278,7 @@ class MatchConfig:
         fix(self, "replace_any", bool(self.replace_any))
         fix(self, "height_weight", float(hw))
         fix(self, "height_points", int(hn))
+        fix(self, "height_complexity", bool(self.height_complexity))
 
     # ------------------------------------------------------------ construction
 
@@ -473,6 +484,11 @@ OPTIONS: dict[str, dict[str, Any]] = {
         "metavar": "N",
         "type": int,
         "help": "points the height functions are computed on (with --height-weight > 0)",
+    },
+    "height_complexity": {
+        "type": bool,
+        "help": "divide h by the two outlines' shape complexities (Wang et al.'s "
+        "normalisation; with --height-weight > 0)",
     },
 }
 

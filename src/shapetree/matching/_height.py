@@ -16,18 +16,33 @@ This module implements the distance from the paper's description, not from its c
    N - 1`` (cyclically) to the line through point ``i`` parallel to ``p[i+1] - p[i-1]``,
    averaged in groups of ``g`` consecutive points (``g = round(3 N / 64)``: 3 at 64
    points, 5 at 100), and each column divided by its largest absolute value over the
-   rows (scale invariance; entries in [-1, 1]);
+   rows (scale invariance; entries in [-1, 1]). The groups are laid out symmetrically:
+   when ``g`` divides ``N - 1`` they tile the other points; otherwise as many whole groups
+   as fit in pairs are taken from the two ends (the points just after ``i`` and just
+   before it) and the leftover points farthest along the curve are left out (at 100 points:
+   9 groups from each end, points ``i + 46, ..., i + 54`` left out). So the descriptor of
+   the mirror image is the descriptor with its columns reversed, which is what makes
+   ``h`` symmetric;
 3. matching point ``i`` of A to point ``j`` of B costs the weighted L1 distance of their
    rows, with weights ``1, 1/2, 1/3, ...`` on the entries nearest the point from either
    side (``"harmonic"``; or a Gaussian of ``N / 6`` points, ``"gauss"``), summing to 1;
 4. ``h(A, B)`` is the cheapest order-preserving matching of A's points to B's, B taken
    cyclically from every start point, each point matched once or skipped at ``0.3`` times
    the mean point cost, against B as traced and mirrored (the cheaper kept), divided by
-   ``N``.
+   ``N``;
+5. optionally (``HeightParams.complexity``, :attr:`MatchConfig.height_complexity`), the
+   paper's shape-complexity normalisation: ``h(A, B) / (C(A) + C(B))``, where the
+   complexity ``C`` of an outline (:func:`complexity`) is the standard deviation of each
+   descriptor column over the points, averaged over the columns (and over the outline as
+   traced and mirrored). A circle has ``C = 0`` (every point sees the same heights); the
+   more an outline's points see different shapes, the larger ``C``. The paper's reason:
+   people notice a deformation of a simple contour more than one of a complex contour, so
+   a difference between two simple outlines counts for more. The paper gives the idea and
+   builds ``C`` from standard deviations of the descriptor; this exact form is ours.
 
 ``h`` is invariant to translation, rotation, scale, start point and mirroring, and symmetric:
 ``h(A, B) = h(B, A)`` (the cyclic programme over every start covers every alignment either
-way round). The paper's shape-complexity normalisation is left out.
+way round); so is its normalised form.
 
 The pure-Python oracle is :func:`shapetree.matching._reference.height_distance_reference`.
 """
@@ -44,7 +59,9 @@ from shapetree.curves import resample
 __all__ = [
     "HeightParams",
     "HeightRows",
+    "complexity",
     "dp_cyclic",
+    "group_starts",
     "height_descriptors",
     "height_distance",
     "height_matrix",
@@ -66,22 +83,26 @@ class HeightParams:
         Weights of the entries by their distance along the curve from the point.
     skip : float
         Cost of leaving a point unmatched, in units of the pair's mean point cost.
+    complexity : bool
+        Divide ``h(A, B)`` by ``C(A) + C(B)`` (:func:`complexity`; step 5 above).
     """
 
     n_points: int = 100
     group: int = 5
     weighting: str = "harmonic"
     skip: float = 0.3
+    complexity: bool = False
 
     @classmethod
-    def of(cls, n_points: int) -> HeightParams:
+    def of(cls, n_points: int, complexity: bool = False) -> HeightParams:
         """The parameters :class:`MatchConfig` uses at ``n_points`` points (harmonic
-        weights, groups of ``round(3 n / 64)``)."""
-        return cls(int(n_points), max(1, round(3 * n_points / 64)))
+        weights, groups of ``round(3 n / 64)``), with or without the complexity
+        normalisation."""
+        return cls(int(n_points), max(1, round(3 * n_points / 64)), complexity=bool(complexity))
 
     @property
     def n_entries(self) -> int:
-        return (self.n_points - 1) // self.group
+        return len(group_starts(self.n_points, self.group))
 
     def weights(self) -> np.ndarray:
         """``(n_entries,)`` weights of the descriptor entries, summing to 1."""
@@ -90,12 +111,32 @@ class HeightParams:
             k = np.arange(m)
             w = 1.0 / np.minimum(k + 1, m - k)
         elif self.weighting == "gauss":
-            centre = np.arange(m) * self.group + (self.group + 1) / 2.0
+            centre = group_starts(self.n_points, self.group) + (self.group - 1) / 2.0
             d = np.minimum(centre, self.n_points - centre)
             w = np.exp(-0.5 * (d / (self.n_points / 6.0)) ** 2)
         else:
             raise ValueError(f"weighting must be 'harmonic' or 'gauss', not {self.weighting!r}")
         return w / w.sum()
+
+
+def group_starts(n: int, group: int) -> np.ndarray:
+    """The first point (``k`` steps along the curve, ``1 <= k <= n - 1``) of each group of
+    ``group`` consecutive heights in the descriptor of an ``n``-point curve, symmetric under
+    ``k -> n - k`` (step 2 of the module's description).
+
+    >>> group_starts(10, 3).tolist()  # 9 points: 3 groups tile them
+    [1, 4, 7]
+    >>> group_starts(100, 5).tolist()[8:10]  # 99 points: 9 groups from each end
+    [41, 55]
+    """
+    m = (n - 1) // group
+    if (n - 1) % group == 0:
+        return 1 + group * np.arange(m)
+    half = m // 2
+    if half == 0:
+        raise ValueError(f"{n} points leave no two groups of {group} heights")
+    near = 1 + group * np.arange(half)
+    return np.concatenate([near, n - group - near[::-1] + 1])
 
 
 def heights(p: np.ndarray, group: int) -> np.ndarray:
@@ -110,11 +151,11 @@ def heights(p: np.ndarray, group: int) -> np.ndarray:
 
     Returns
     -------
-    (n, (n - 1) // group) float array
+    (n, len(group_starts(n, group))) float array
         Row ``i``: the signed distances of the points ``i + 1, i + 2, ...`` (cyclically) to
-        the tangent line at point ``i`` (direction ``p[i+1] - p[i-1]``), averaged in groups,
-        each column divided by its largest absolute value over the rows (values in
-        [-1, 1]; a column of zeros stays zero).
+        the tangent line at point ``i`` (direction ``p[i+1] - p[i-1]``), averaged in the
+        groups of :func:`group_starts`, each column divided by its largest absolute value
+        over the rows (values in [-1, 1]; a column of zeros stays zero).
     """
     n = len(p)
     t = np.roll(p, -1, 0) - np.roll(p, 1, 0)
@@ -122,8 +163,11 @@ def heights(p: np.ndarray, group: int) -> np.ndarray:
     normal = np.stack([-t[:, 1], t[:, 0]], 1)
     idx = (np.arange(n)[:, None] + np.arange(1, n)[None, :]) % n
     h = ((p[idx] - p[:, None, :]) * normal[:, None, :]).sum(-1)
-    m = (n - 1) // group
-    f = h[:, : m * group].reshape(n, m, group).mean(-1)
+    if (n - 1) % group == 0:
+        f = h.reshape(n, (n - 1) // group, group).mean(-1)
+    else:
+        cols = group_starts(n, group)[:, None] - 1 + np.arange(group)
+        f = h[:, cols].mean(-1)
     scale = np.abs(f).max(0, keepdims=True)
     return f / np.where(scale > 0, scale, 1.0)
 
@@ -229,11 +273,33 @@ def _column(FA: np.ndarray, fb: np.ndarray, fb_mirror: np.ndarray, w: np.ndarray
     return out
 
 
+#: Smallest denominator ``C(A) + C(B)`` of the normalised distance, so that two circles
+#: (``C`` and ``h`` both 0 up to rounding) are at distance ~0, not rounding / rounding. Real
+#: outlines have ``C`` of 0.3-0.5; at 0.01 an outline is all but a circle.
+MIN_COMPLEXITY = 0.01
+
+
+def complexity(desc: tuple[np.ndarray, np.ndarray]) -> float:
+    """The shape complexity ``C`` of an outline given by its :func:`height_descriptors`.
+
+    The population standard deviation of each descriptor column over the outline's points,
+    averaged over the columns, for the outline as traced and mirrored, and the two averaged
+    (the two are equal up to rounding, the mirror's columns being the same columns
+    reversed; averaging makes ``C`` mirror invariant exactly). 0 for a circle; about
+    0.3-0.5 for the silhouettes of MPEG-7, Kimia-99 and the Swedish leaves.
+    """
+    return float(0.5 * (desc[0].std(axis=0).mean() + desc[1].std(axis=0).mean()))
+
+
 def height_distance(
     a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], hp: HeightParams
 ) -> float:
-    """``h(A, B)`` of two outlines given by their :func:`height_descriptors`."""
-    return float(_pair(a[0], b[0], b[1], hp.weights(), float(hp.skip)))
+    """``h(A, B)`` of two outlines given by their :func:`height_descriptors` (divided by
+    ``C(A) + C(B)`` when ``hp.complexity``)."""
+    h = float(_pair(a[0], b[0], b[1], hp.weights(), float(hp.skip)))
+    if hp.complexity:
+        h /= max(complexity(a) + complexity(b), MIN_COMPLEXITY)
+    return h
 
 
 class HeightRows:
@@ -251,12 +317,16 @@ class HeightRows:
         self.FA = np.stack([d[0] for d in rows]) if rows else np.empty((0, hp.n_points, 0))
         self.w = hp.weights()
         self.skip = float(hp.skip)
+        self.C = np.array([complexity(d) for d in rows]) if hp.complexity else None
 
     def against(self, col: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """``(len(rows),)`` distances ``h(row_i, col)`` (compiled; releases the GIL)."""
         if self.FA.shape[0] == 0:
             return np.empty(0)
-        return _column(self.FA, col[0], col[1], self.w, self.skip)
+        h = _column(self.FA, col[0], col[1], self.w, self.skip)
+        if self.C is not None:
+            h /= np.maximum(self.C + complexity(col), MIN_COMPLEXITY)
+        return h
 
 
 def height_matrix(

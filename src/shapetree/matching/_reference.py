@@ -462,7 +462,12 @@ def reference_score(
 
 
 def reference_height_distance(
-    a: np.ndarray, b: np.ndarray, n_entries_group: int, weights: Sequence[float], skip: float
+    a: np.ndarray,
+    b: np.ndarray,
+    n_entries_group: int,
+    weights: Sequence[float],
+    skip: float,
+    complexity: bool = False,
 ) -> float:
     """The height-function distance ``h(A, B)`` of two sampled closed curves, literally
     (:mod:`shapetree.matching._height`, steps 2-4), sharing no code with the kernel.
@@ -477,9 +482,13 @@ def reference_height_distance(
         Weights of the descriptor entries.
     skip : float
         Cost of an unmatched point, in units of the mean point cost.
+    complexity : bool
+        Divide by ``C(A) + C(B)``: each curve's mean over descriptor columns of the
+        column's population standard deviation, averaged over the curve and its mirror image.
 
     The descriptor is built point by point (the signed distance of every other point to the
-    tangent line, the entries averaged, each divided by its column's largest magnitude); the
+    tangent line, averaged in groups that tile the other points or, when they cannot, come
+    in mirror pairs from both ends, each divided by its column's largest magnitude); the
     matching is a memoised recursion over every start of B and over B and its mirror image
     (mirrored left to right, then traced counter-clockwise again). Pure Python: small
     curves only (n <= ~16).
@@ -498,7 +507,13 @@ def reference_height_distance(
                 for k in range(1, n)
             ]
             g = n_entries_group
-            rows.append([sum(hs[e * g : e * g + g]) / g for e in range((n - 1) // g)])
+            if (n - 1) % g == 0:  # groups tile the points 1 .. n - 1
+                groups = [list(range(k, k + g)) for k in range(1, n, g)]
+            else:  # pairs of groups from both ends, each the other's mirror (k -> n - k)
+                near = [list(range(k, k + g)) for k in range(1, g * ((n - 1) // g // 2), g)]
+                far = [sorted(n - k for k in grp) for grp in reversed(near)]
+                groups = near + far
+            rows.append([sum(hs[k - 1] for k in grp) / g for grp in groups])
         for e in range(len(rows[0])):
             big = max(abs(r[e]) for r in rows) or 1.0
             for r in rows:
@@ -532,9 +547,22 @@ def reference_height_distance(
             best = min(best, f(n, m))
         return best
 
-    pa = ccw([(float(x), float(y)) for x, y in a])
+    def spread(rows: list[list[float]]) -> float:
+        cols = list(zip(*rows))
+        sds = []
+        for col in cols:
+            mean = sum(col) / len(col)
+            sds.append(math.sqrt(sum((x - mean) ** 2 for x in col) / len(col)))
+        return sum(sds) / len(sds)
+
+    pa = [(float(x), float(y)) for x, y in a]
     pb = [(float(x), float(y)) for x, y in b]
-    fa = descriptor(pa)
+    fa = descriptor(ccw(pa))
     plain = descriptor(ccw(pb))
     mirrored = descriptor(ccw([(-x, y) for x, y in pb]))
-    return min(match(fa, plain), match(fa, mirrored)) / len(pa)
+    h = min(match(fa, plain), match(fa, mirrored)) / len(pa)
+    if complexity:
+        fa_mirrored = descriptor(ccw([(-x, y) for x, y in pa]))
+        c = (spread(fa) + spread(fa_mirrored) + spread(plain) + spread(mirrored)) / 2
+        h /= max(c, 0.01)
+    return h

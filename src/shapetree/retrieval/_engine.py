@@ -74,7 +74,7 @@ def _prep_heights(curves: Any, config: MatchConfig, what: str) -> list | None:
     from shapetree.matching._api import height_outline
     from shapetree.matching._height import HeightParams, height_descriptors
 
-    hp = HeightParams.of(config.height_points)
+    hp = HeightParams.of(config.height_points, config.height_complexity)
     outlines = curves.outlines if isinstance(curves, ShapeIndex) else curves
     return [
         height_descriptors(height_outline(c, config, name=f"{what} {i}"), hp)
@@ -224,7 +224,8 @@ def _compute_block(
     if heights is not None:
         from shapetree.matching._height import HeightParams, HeightRows
 
-        hrows = HeightRows(heights[0], HeightParams.of(config.height_points))
+        hp = HeightParams.of(config.height_points, config.height_complexity)
+        hrows = HeightRows(heights[0], hp)
     for j, versions in enumerate(targets):
         out[:n_pass, :, j] = np.inf
         for b in versions:
