@@ -36,8 +36,9 @@ Kimia-99 rows had been seen.
 
 Scored pairwise: Kimia-99's subset is the whole set; for MPEG-7 and Swedish leaf the chosen
 value is scored on the full set with ``--full NAME`` (the shape-tree matrix 35-45 min on the
-two cores, cached in ``--cache-dir``; the height-function matrix 6 min at 64 points, about
-20 at 100).
+two cores, cached in ``--cache-dir``; the height-function matrix 4-7 min at 64 points,
+17-40 at 100, for Swedish leaf and MPEG-7). Swedish leaf's form and weight chosen by
+species instead: ``swedish_cv.py``.
 
 Run::
 

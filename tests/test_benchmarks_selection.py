@@ -428,3 +428,34 @@ def test_height_variants_committed_choices_follow_the_rules() -> None:
     )
     for name, run in rec["full_runs"].items():
         assert run["w"] == hv.parse(rec["held_out_choice"][name]["chosen_form_w"])[1]
+
+
+def test_swedish_species_cv_decisions_and_folds() -> None:
+    """``swedish_cv``: the per-leaf decisions add up to ``nn_accuracy_splits``'s accuracy of
+    every split, and each species is scored with the value that is best on the other
+    species' leaves (here a value that is perfect except on one species, which that
+    species' own fold cannot see)."""
+    sc = pytest.importorskip("swedish_cv")
+    from shapetree.retrieval import nn_accuracy_splits
+    from shapetree.retrieval._protocols import split_masks
+
+    labels = np.repeat(np.arange(4), 8)
+    masks = split_masks(labels, 3, 5, 0)
+    good, bad = _distances(labels, 0.2, 1), _distances(labels, 3.0, 2)
+    for D in (good, bad):
+        hits = sc.split_hits(D, labels, masks)
+        _, _, accs = nn_accuracy_splits(D, labels, 3, 5, 0, return_splits=True)
+        assert np.allclose(100.0 * hits.sum(1) / (~np.stack(masks)).sum(1), accs)
+    h_good = sc.split_hits(good, labels, masks)
+    test = ~np.stack(masks)
+    assert (h_good == test).all()  # every test leaf right
+    only0 = test & (labels == 0)  # "a": right on species 0 only
+    but0 = test & (labels != 0)  # "b": right everywhere but species 0
+    rec = sc.species_cv({"a": only0, "b": but0}, labels, masks, ("a", "b"))
+    # each fold chooses on the other species: "b" wins every fold, species 0's included
+    assert [f["chosen"] for f in rec["folds"].values()] == ["b"] * 4
+    assert np.allclose(rec["accuracy_splits"], 100.0 * but0.sum(1) / test.sum(1))
+    assert rec["folds"]["0"]["held_out_correct_per_split"] == [0] * 5
+    # a tie goes to the earlier grid value
+    tie = sc.species_cv({"a": but0, "b": but0}, labels, masks, ("a", "b"))
+    assert {f["chosen"] for f in tie["folds"].values()} == {"a"}
