@@ -156,10 +156,18 @@ def class_cv(matrices: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, A
 
 def full_score(name: str, value: str, cache: Path) -> dict[str, Any]:
     """The base configuration's full-set score without and with the chosen form and weight
-    (``eval_height_function.full_score`` of that form)."""
+    (``eval_height_function.full_score`` of that form), and, where the target is missed
+    (Swedish leaf), a retrieval grid of the fused matrix's 8 worst queries."""
     hp, w = parse(value)
     assert hp is not None
-    return {"form": asdict(hp), **hf.full_score(name, w, cache, hp)}
+    rec = {"form": asdict(hp), **hf.full_score(name, w, cache, hp)}
+    if name == "swedish_leaf":
+        curves, labels, D, _ = _knob.full_base(name, hf.CONFIG, cache)
+        png = _knob.RESULTS / f"beyond_paper_height_variants_{name}_worst.png"
+        fused = hf.fuse(D, hf.cached_hf_matrix(curves, cache, hp), w)
+        rec["worst_queries"] = base.worst_grid(name, fused, labels, curves, png)
+        rec["worst_grid"] = png.name
+    return rec
 
 
 def main(argv: list[str] | None = None) -> int:
