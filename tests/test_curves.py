@@ -82,6 +82,20 @@ def test_closed_curve_of_two_points_plus_repeat_is_rejected():
         as_curve([[0, 0], [1, 0], [0, 0]], closed=True)
 
 
+def test_closed_curve_on_one_line_is_rejected_open_line_is_kept():
+    """A closed curve whose points all lie on one line encloses nothing: refused with a
+    sentence naming it (it used to get a finite cost and no warning); the same points as an
+    open curve are a straight line, kept; a thin but real outline is kept."""
+    t = np.linspace(0, 1, 20)
+    line = np.c_[3 + 2 * t, -1 + 0.5 * t]
+    for pts in (line, np.r_[line, line[::-1][1:-1]]):  # a segment, and one traced back
+        with pytest.raises(CurveError, match="my-line.*one straight line.*closed=False"):
+            as_curve(pts, closed=True, name="my-line")
+    assert as_curve(line, closed=False).shape == (20, 2)
+    thin = np.r_[line, line[::-1] + [0, 1e-6]]
+    assert as_curve(thin, closed=True).shape == (40, 2)
+
+
 # ---------------------------------------------------------------- length, area, orientation
 
 

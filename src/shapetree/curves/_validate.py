@@ -208,7 +208,8 @@ def as_curve(
     CurveError
         If the input is none of the forms above (1-D, 3 columns, empty, not numeric, a
         multi-part geometry), contains NaN or inf (the message names the row), has zero
-        length, or has fewer than ``min_points`` distinct points.
+        length, has fewer than ``min_points`` distinct points, or is closed with every
+        point on one straight line (it encloses no area).
     """
     if (
         isinstance(min_points, bool)
@@ -236,6 +237,13 @@ def as_curve(
             f"{name}: the curve has fewer than {min_points} distinct points ({n_distinct}); "
             f"a curve needs at least {min_points}"
         )
+    if closed:
+        sv = np.linalg.svd(arr - arr.mean(axis=0), compute_uv=False)
+        if sv[1] <= 1e-12 * sv[0]:
+            raise CurveError(
+                f"{name}: all the points of this closed curve lie on one straight line, so it "
+                "encloses no area; pass it as an open curve (closed=False) if it is a line"
+            )
     return arr
 
 
