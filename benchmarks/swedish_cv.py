@@ -103,9 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     for v in hv.GRID:
         hp, w = hv.parse(v)
         hits[v] = split_hits(D if hp is None else hf.fuse(D, H[hf.label(hp)], w), labels, masks)
-    by_value = {
-        v: round(100.0 * float(h.sum() / (~np.stack(masks)).sum()), 4) for v, h in hits.items()
-    }
+    n_test = int((~np.stack(masks)).sum())
+    by_value = {v: round(100.0 * float(h.sum()) / n_test, 4) for v, h in hits.items()}
     rec = species_cv(hits, labels, masks, hv.GRID)
     out = {
         "command": "python3 benchmarks/swedish_cv.py",

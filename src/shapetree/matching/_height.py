@@ -44,7 +44,7 @@ This module implements the distance from the paper's description, not from its c
 ``h(A, B) = h(B, A)`` (the cyclic programme over every start covers every alignment either
 way round); so is its normalised form.
 
-The pure-Python oracle is :func:`shapetree.matching._reference.height_distance_reference`.
+The pure-Python oracle is :func:`shapetree.matching._reference.reference_height_distance`.
 """
 
 from __future__ import annotations
@@ -163,11 +163,8 @@ def heights(p: np.ndarray, group: int) -> np.ndarray:
     normal = np.stack([-t[:, 1], t[:, 0]], 1)
     idx = (np.arange(n)[:, None] + np.arange(1, n)[None, :]) % n
     h = ((p[idx] - p[:, None, :]) * normal[:, None, :]).sum(-1)
-    if (n - 1) % group == 0:
-        f = h.reshape(n, (n - 1) // group, group).mean(-1)
-    else:
-        cols = group_starts(n, group)[:, None] - 1 + np.arange(group)
-        f = h[:, cols].mean(-1)
+    cols = group_starts(n, group)[:, None] - 1 + np.arange(group)  # (entries, group)
+    f = h[:, cols].mean(-1)
     scale = np.abs(f).max(0, keepdims=True)
     return f / np.where(scale > 0, scale, 1.0)
 
