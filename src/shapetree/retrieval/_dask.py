@@ -61,6 +61,7 @@ from shapetree._errors import ShapeTreeError
 
 __all__ = [
     "CONNECT_TIMEOUT",
+    "CONNECT_TRIES",
     "DaskScheduler",
     "PROGRESS_INTERVAL",
     "TASK_RETRIES",
@@ -99,6 +100,30 @@ def _distributed() -> Any:
     except ImportError as exc:
         raise ShapeTreeError(_INSTALL) from exc
     return distributed
+
+
+#: Tries of a client's handshake (see :func:`_connect`).
+CONNECT_TRIES: int = 3
+
+
+def _connect(d: Any, target: Any, timeout: str) -> Any:
+    """``distributed.Client(target)``, tried again when the handshake meets a broadcast.
+
+    The scheduler sends a new client ``stream-start`` in a batch that lasts 2 ms; a message to
+    all clients sent in that window (another client's ``cancel`` of keys the scheduler has
+    already forgotten, for one) joins the batch, and ``Client._ensure_connected`` fails on its
+    ``assert len(msg) == 1``. That is distributed's race, not a broken scheduler, so the
+    connection is made again, at most :data:`CONNECT_TRIES` times in all.
+    """
+    for _ in range(CONNECT_TRIES):
+        try:
+            return d.Client(target, timeout=timeout, set_as_default=False)
+        except AssertionError as exc:
+            last = exc
+    raise ShapeTreeError(
+        f"the Dask handshake with {target!r} failed {CONNECT_TRIES} times (a message to all "
+        f"clients arrived with it each time): {last!r}"
+    ) from last
 
 
 class DaskScheduler:
@@ -169,7 +194,7 @@ class DaskScheduler:
                     self._cluster = local_cluster(self.n_local)
                     self._owns_cluster = True
                 target = self._cluster if self._cluster is not None else self.address
-                self._client = d.Client(target, timeout=timeout, set_as_default=False)
+                self._client = _connect(d, target, timeout)
             except (OSError, TimeoutError) as exc:
                 self._close_cluster()
                 what = (
@@ -591,7 +616,17 @@ def run_tasks(
                             bar.update(units(r0, r1) - done)
                     postfix()
             finally:
-                client.cancel(list(futures))
+                # Cancel only what is still pending and release the rest (an erred key kept
+                # would answer the next submit of the same key): a cancel of released keys
+                # makes the scheduler broadcast an empty "cancelled-keys" to every client,
+                # and one that lands in a connecting client's first batch fails its
+                # handshake (see _connect).
+                pending = [f for f in futures if not f.done()]
+                for f in futures:
+                    if f.done():
+                        f.release()
+                if pending:
+                    client.cancel(pending)
                 scattered.release()
             if not lost or not remaining:
                 break
