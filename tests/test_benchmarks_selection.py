@@ -221,7 +221,8 @@ def test_preset_tree_mean_adoption_rule() -> None:
 
     # every preset with more than one tree is tested, and now averages its trees (the
     # committed results/preset_tree_mean.json adopted the mean for both)
-    several = {k for k, c in PRESETS.items() if c.n_trees > 1}
+    # (``fused`` takes its trees from the held-out base of the grid; tested below)
+    several = {k for k, c in PRESETS.items() if c.n_trees > 1 and k != "fused"}
     assert several == set(ptm.PRESETS_TESTED)
     rec = json.loads((ptm.RESULTS / "preset_tree_mean.json").read_text())
     for name in ptm.PRESETS_TESTED:
@@ -459,3 +460,27 @@ def test_swedish_species_cv_decisions_and_folds() -> None:
     # a tie goes to the earlier grid value
     tie = sc.species_cv({"a": but0, "b": but0}, labels, masks, ("a", "b"))
     assert {f["chosen"] for f in tie["folds"].values()} == {"a"}
+
+
+def test_fused_preset_is_the_committed_choice() -> None:
+    """``PRESETS["fused"]`` is what ``select_fused.py`` chooses from the committed subset
+    scores (best mean rank on all three sets), and each set's held-out choice beats the base
+    on the full set it was not chosen on (the rule that lets the fusion into a preset)."""
+    sf = pytest.importorskip("select_fused")
+    from shapetree.matching import PRESETS
+
+    hvj = json.loads((sf.RESULTS / "beyond_paper_height_variants.json").read_text())
+    chosen, mr = sf.choose_all(hvj["subsets"])
+    assert chosen == "n64 g3 harmonic +C w=0.6" and mr[chosen] == min(mr.values())
+    assert sf.as_config(chosen) == PRESETS["fused"]
+    base = PRESETS["fused"].replace(height_weight=0.0, height_points=100, height_complexity=False)
+    assert sf.as_config(sf.hv.OFF) == base == sf.hv.hf.CONFIG  # the grid's base
+    with pytest.raises(ValueError, match="not a form the library"):
+        sf.as_config("n64 g3 gauss w=0.6")
+    rec = json.loads((sf.RESULTS / "preset_fused.json").read_text())
+    assert rec["chosen"] == chosen and rec["config"] == PRESETS["fused"].as_dict()
+    full = rec["full_sets"]
+    assert full["kimia99"]["held_out"]["sum"] > full["kimia99"]["without_fusion"]
+    assert full["mpeg7"]["held_out"]["bullseye"] > full["mpeg7"]["without_fusion"]
+    sw = full["swedish_leaf"]
+    assert sw["held_out"]["accuracy_mean"] > sw["without_fusion"]

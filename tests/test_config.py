@@ -75,7 +75,7 @@ def test_every_option_is_described_once() -> None:
 
 
 def test_presets() -> None:
-    assert set(PRESETS) == {"paper", "general", "kimia99", "mpeg7", "swedish_leaf"}
+    assert set(PRESETS) == {"paper", "general", "kimia99", "mpeg7", "swedish_leaf", "fused"}
     p = PRESETS["paper"]  # one sampling, no mirror, no band, no phases, lambda ~ length
     assert (p.mirror, p.band, p.phases, p.target_factor, p.length_power) == (
         False,
@@ -86,8 +86,10 @@ def test_presets() -> None:
     )
     assert p.segment_weight == 1.0 and p.symmetrize == "none" and p.occlusion is None
     assert PRESETS["general"] == MatchConfig()  # the dataclass defaults are the general preset
-    for cfg in PRESETS.values():  # the issue-15 options are off in every preset
+    for name, cfg in PRESETS.items():  # the issue-15 options are off in every preset
         assert (cfg.dif, cfg.matcher, cfg.replace_any) == ("procrustes", "directed", False)
+        # and the height-function fusion in ``fused`` alone
+        assert (cfg.height_weight > 0) == (name == "fused")
     assert match(_blob(1), _blob(2)).cost == match(_blob(1), _blob(2), "general").cost
 
 
