@@ -154,6 +154,8 @@ def kimia():
         ("general", {"symmetrize": "reverse", "n_trees": 2}),
         ("kimia99", {"tree_combine": "mean"}),
         ("mpeg7", {"tree_combine": "mean", "symmetrize": "min"}),
+        ("fused", {"height_points": 16}),  # B^(1 - w) h^w with h exact
+        ("fused", {"height_points": 16, "symmetrize": "reverse", "height_weight": 0.9}),
     ],
 )
 def test_bound_never_above_distance_on_kimia99(kimia, preset, options):
@@ -198,3 +200,19 @@ def test_bound_never_above_cost_with_the_hyperbolic_dif():
         assert full == pytest.approx(cost * (1 - BOUND_SLACK), rel=1e-6)
     with pytest.raises(ShapeTreeError, match="dif"):
         ModelStack([model], target.n_points, hp, dtype)
+
+
+def test_fused_bound_is_exact_where_h_alone_counts(kimia):
+    """With ``height_weight = 1`` the distance is ``h`` and the bound equals it exactly; at
+    ``w = 0.6`` it is ``B^0.4 h^0.6``, so it is tighter, relative to the distance, than the
+    ψ bound it is made of."""
+    q = kimia[:4]
+    kw = dict(n_points=16, height_points=16)
+    d1 = distance_matrix(q, kimia, "fused", progress=False, height_weight=1.0, **kw)
+    assert np.array_equal(lower_bounds(q, kimia, "fused", height_weight=1.0, **kw), d1)
+    d = distance_matrix(q, kimia, "fused", progress=False, **kw)
+    b = lower_bounds(q, kimia, "fused", **kw)
+    d0 = distance_matrix(q, kimia, "fused", progress=False, height_weight=0.0, **kw)
+    b0 = lower_bounds(q, kimia, "fused", height_weight=0.0, **kw)
+    pos = (d0 > 0) & (d > 0)  # not a shape against itself
+    assert np.all(b <= d) and np.mean(b[pos] / d[pos]) > np.mean(b0[pos] / d0[pos])

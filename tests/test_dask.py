@@ -417,23 +417,28 @@ def test_client_killed_mid_run_resumes(tmp_path: Path) -> None:
 # ---------------------------------------------------------------- the pruned search
 
 
-@pytest.mark.parametrize("symmetrize", ["none", "mean", "reverse"])
+@pytest.mark.parametrize("symmetrize", ["none", "mean", "reverse", "none+h", "reverse+h"])
 def test_knn_bitwise_equal_and_cache_shared_with_threads(client, tmp_path, symmetrize) -> None:
     """``knn(scheduler=...)``: each block of queries is a task; the indices and distances
     are bitwise the threaded search's, which are the full matrix's ``k`` smallest per row
-    (ties by index), and the blocks the cluster wrote are what a threaded run reads."""
+    (ties by index), and the blocks the cluster wrote are what a threaded run reads
+    (``+h``: with the height-function fusion, whose descriptors go with the tasks)."""
     from shapetree.retrieval import knn
 
     curves = _shapes(16, seed=7)
     q, db = curves[:9], curves[4:]
-    kw = dict(CFG, symmetrize=symmetrize, k=3, block=2)
+    symmetrize, _, h = symmetrize.partition("+")
+    fusion = dict(height_weight=0.6, height_points=20, height_complexity=True) if h else {}
+    kw = dict(CFG, symmetrize=symmetrize, k=3, block=2, **fusion)
     ref_i, ref_d = knn(q, db, workers=2, **kw)
     stats: dict = {}
     got_i, got_d = knn(q, db, scheduler=client, cache_dir=tmp_path, stats=stats, **kw)
     assert stats["engine"] == "dask" and stats["blocks"] == 5 and stats["blocks_cached"] == 0
     assert stats["full"] < 9 * 12  # the bound pruned some pairs on the workers too
     assert np.array_equal(got_i, ref_i) and np.array_equal(got_d, ref_d)
-    full = distance_matrix(q, db, workers=2, progress=False, **{**CFG, "symmetrize": symmetrize})
+    full = distance_matrix(
+        q, db, workers=2, progress=False, **{**CFG, "symmetrize": symmetrize, **fusion}
+    )
     order = np.argsort(full, axis=1, kind="stable")[:, :3]
     assert np.array_equal(ref_i, order)
     assert np.allclose(ref_d, np.take_along_axis(full, order, axis=1), rtol=1e-6, atol=0)
@@ -446,7 +451,7 @@ def test_knn_bitwise_equal_and_cache_shared_with_threads(client, tmp_path, symme
 
 def test_knn_worker_with_other_code_is_refused() -> None:
     with pytest.raises(ShapeTreeError, match="other shapetree code"):
-        _dask._knn_task((None, None), (None, None), (), "0" * 64, (0, 1), None)
+        _dask._knn_task((None,) * 3, (None,) * 3, (), "0" * 64, (0, 1), None)
 
 
 def test_evaluate_neighbours_on_a_local_cluster(tmp_path) -> None:

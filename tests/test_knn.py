@@ -48,6 +48,12 @@ def _exhaustive(queries, database, preset, k, **options):
         ("paper", {"n_points": 16, "symmetrize": "max"}, 6),
         ("general", {"n_points": 16, "symmetrize": "reverse"}, 6),
         ("kimia99", {"n_points": 16, "tree_combine": "mean"}, 8),
+        # the height-function fusion: h exact, the bound B^(1 - w) h^w (every direction)
+        ("fused", {"n_points": 16, "height_points": 24, "n_trees": 1}, 6),
+        ("fused", {"n_points": 16, "height_points": 16, "symmetrize": "min"}, 5),
+        ("fused", {"n_points": 16, "height_points": 20, "symmetrize": "reverse"}, 4),
+        ("general", {"n_points": 16, "height_weight": 1.0, "height_points": 16}, 5),
+        ("paper", {"n_points": 16, "height_weight": 0.3, "symmetrize": "mean"}, 3),
     ],
 )
 def test_knn_equals_exhaustive_search_on_kimia99(kimia, preset, options, k):

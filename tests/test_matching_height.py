@@ -233,8 +233,8 @@ def test_fusion_ranks_a_deformed_copy_first() -> None:
 
 
 def test_options_are_validated_and_refused_where_unsupported() -> None:
-    """Bad values name the option; open curves and the pruned search refuse the fusion
-    with a sentence, not a traceback."""
+    """Bad values name the option; open curves refuse the fusion with a sentence, not a
+    traceback."""
     with pytest.raises(ShapeTreeError, match="height_weight"):
         MatchConfig(height_weight=1.5)
     with pytest.raises(ShapeTreeError, match="height_weight"):
@@ -247,9 +247,5 @@ def test_options_are_validated_and_refused_where_unsupported() -> None:
     line = np.c_[np.linspace(0, 1, 20), np.sin(np.linspace(0, 3, 20))]
     with pytest.raises(ShapeTreeError, match="closed curves only"):
         match(line, line, cfg, closed=False)
-    from shapetree.retrieval import knn
-
-    with pytest.raises(ShapeTreeError, match="does not support height_weight"):
-        knn([_star(40)], [_star(40), _bump(40)], cfg, k=1)
     with pytest.raises(ShapeTreeError, match="height distances"):
         combine(np.zeros((4, 4)), "none", 0.5)

@@ -23,6 +23,13 @@ pass, the minimum over target phases and passes), so they are bitwise the number
 its next candidates whose bound is ``<= τ`` (``k`` in the first round, then by default
 all of them), and computes them grouped by the shape that is prepared as the target (one
 target preparation for all the queries that need it).
+
+The height-function fusion (``height_weight = w > 0``, ``D = ψ^(1 - w) h^w``) is searched
+the same way: ``h`` is computed exactly for every pair of a block (the engine's numbers,
+:class:`~shapetree.matching._height.HeightRows`, in the engine's direction), and the bound
+of ``D`` is ``B^(1 - w) h^w``, which is ``<= D`` because ``ψ^(1 - w)`` does not decrease
+with ψ. Only the shape-tree matchings are skipped, so the fusion prunes as much as its ψ
+bound allows while ``h`` costs what it costs in the full matrix.
 """
 
 from __future__ import annotations
@@ -40,13 +47,15 @@ from numpy.typing import ArrayLike
 
 from shapetree._errors import ShapeTreeError
 from shapetree.matching import MatchConfig, prepare_target
-from shapetree.matching._api import kernel_params, model_passes
+from shapetree.matching._api import fuse_height, kernel_params, model_passes
 from shapetree.matching._batch import ModelStack
 from shapetree.matching._bound import BoundStack
+from shapetree.matching._height import HeightParams, HeightRows
 from shapetree.retrieval._engine import (
     _block_path,
     _cache_key,
     _check_scheduler,
+    _prep_heights,
     _prep_models,
     _prep_targets,
     _resolve,
@@ -184,30 +193,49 @@ def _combine(fwd: np.ndarray | None, bwd: np.ndarray | None, sym: str) -> np.nda
 
 
 Curves = tuple[list[np.ndarray], list[list[np.ndarray]]]
+#: Height descriptors (plain, mirrored) of the queries and of the database.
+Heights = tuple[list, list]
 
 
 def _prepared(
     queries: Sequence[ArrayLike], database: Sequence[ArrayLike], cfg: MatchConfig
-) -> tuple[Curves | None, Curves | None]:
-    """The sampled curves of each direction the configuration needs, ``(fwd, bwd)``:
-    ``fwd = (query models, database targets)`` unless ``symmetrize="reverse"``, ``bwd =
-    (database models, query targets)`` unless ``symmetrize="none"``."""
-    fwd = bwd = None
+) -> tuple[Curves | None, Curves | None, Heights | None]:
+    """The sampled curves of each direction the configuration needs, ``(fwd, bwd,
+    heights)``: ``fwd = (query models, database targets)`` unless ``symmetrize="reverse"``,
+    ``bwd = (database models, query targets)`` unless ``symmetrize="none"``, ``heights =
+    (query descriptors, database descriptors)`` when ``height_weight > 0``."""
+    fwd = bwd = heights = None
     if cfg.symmetrize != "reverse":
         fwd = (_prep_models(queries, cfg, "query"), _prep_targets(database, cfg, "database curve"))
     if cfg.symmetrize != "none":
         bwd = (_prep_models(database, cfg, "database curve"), _prep_targets(queries, cfg, "query"))
-    return fwd, bwd
+    if cfg.height_weight > 0:
+        hq = _prep_heights(queries, cfg, "query")
+        hd = _prep_heights(database, cfg, "database curve")
+        assert hq is not None and hd is not None
+        heights = (hq, hd)
+    return fwd, bwd, heights
 
 
-def _pairs_key(fwd: Curves | None, bwd: Curves | None, cfg: MatchConfig, spec: str) -> str:
-    """Cache key: the engine's key of each direction's sampled curves and ``spec``."""
+def _pairs_key(
+    fwd: Curves | None,
+    bwd: Curves | None,
+    cfg: MatchConfig,
+    spec: str,
+    heights: Heights | None = None,
+) -> str:
+    """Cache key: the engine's key of each direction's sampled curves, the height
+    descriptors (with the fusion) and ``spec``."""
     import hashlib
 
     h = hashlib.sha256(spec.encode())
     for curves in (fwd, bwd):
         if curves is not None:
             h.update(_cache_key(curves[0], curves[1], cfg).encode())
+    for group in heights or ():
+        for plain, mirrored in group:
+            h.update(np.ascontiguousarray(plain).tobytes())
+            h.update(np.ascontiguousarray(mirrored).tobytes())
     return h.hexdigest()
 
 
@@ -227,9 +255,14 @@ class _Pairs:
         cfg: MatchConfig,
         keep_from: int | None,
         keep_top: int,
+        heights: Heights | None = None,
     ) -> None:
         self.cfg = cfg
         self.sym = cfg.symmetrize
+        self.w = cfg.height_weight
+        self.heights = heights
+        self._height_db: HeightRows | None = None
+        self._lock = threading.Lock()
         self.fwd = self.bwd = None
         if fwd is not None:
             self.nq, self.nd = len(fwd[0]), len(fwd[1])
@@ -268,6 +301,51 @@ class _Pairs:
 
             _run([bjob(qs) for qs in _chunks(range(len(rows)), workers)], workers)
         return np.maximum(_combine(fwd, bwd, self.sym), 0.0)
+
+    def fused_bounds(
+        self, rows: Sequence[int], h: np.ndarray | None, workers: int = 1
+    ) -> np.ndarray:
+        """:meth:`bounds`, fused with the exact ``h`` of :meth:`height_rows` when given."""
+        b = self.bounds(rows, workers)
+        return b if h is None else fuse_height(b, h, self.w)
+
+    def height_rows(self, rows: Sequence[int], workers: int = 1) -> np.ndarray | None:
+        """``h[q, x]`` for the queries ``rows`` (``None`` without the fusion), shape
+        (len(rows), n_database): the engine's numbers, in its direction (the queries'
+        descriptors stacked against each database outline; under ``symmetrize="reverse"``
+        the database's against each query, as ``distance_matrix`` computes them)."""
+        if self.heights is None:
+            return None
+        rows = list(rows)
+        hq, hd = self.heights
+        hp = HeightParams.of(self.cfg.height_points, self.cfg.height_complexity)
+        out = np.empty((len(rows), self.nd))
+        if self.sym != "reverse":
+            stack = HeightRows([hq[r] for r in rows], hp)
+
+            def fjob(js: list[int]) -> Callable[[], None]:
+                def run() -> None:
+                    for j in js:
+                        out[:, j] = stack.against(hd[j])
+
+                return run
+
+            _run([fjob(js) for js in _chunks(range(self.nd), workers)], workers)
+            return out
+        with self._lock:
+            if self._height_db is None:
+                self._height_db = HeightRows(hd, hp)
+            db = self._height_db
+
+        def bjob(qs: list[int]) -> Callable[[], None]:
+            def run() -> None:
+                for i in qs:
+                    out[i] = db.against(hq[rows[i]])
+
+            return run
+
+        _run([bjob(qs) for qs in _chunks(range(len(rows)), workers)], workers)
+        return out
 
     def costs(self, pairs: list[tuple[int, int]], workers: int = 1) -> np.ndarray:
         """Full distances of ``(q, x)`` pairs, equal to ``search``'s (``>= 0``)."""
@@ -325,6 +403,7 @@ def lower_bounds(
         Closed curves (rows, columns).
     config : MatchConfig, str or None
         Needs ``n_points`` (one size for every curve); every ``symmetrize`` is supported.
+        With ``height_weight = w > 0`` the bound is ``B_ψ^(1 - w) h^w`` with ``h`` exact.
     keep_from, keep_top : int, None or "auto"
         Nodes of the model's shape-tree of depth ``>= keep_from`` (``None``: none by this
         rule) or ``< keep_top`` are matched exactly, the others dropped
@@ -340,22 +419,13 @@ def lower_bounds(
     """
     queries, database = _source(queries), _source(database)
     cfg = _resolve(config, options, queries, database)
-    _check_no_height(cfg, "lower_bounds")
     workers = _check_int("workers", workers, 1)
     if len(queries) == 0 or len(database) == 0:
         raise ShapeTreeError("lower_bounds needs at least one query and one database curve")
-    pairs = _Pairs(*_prepared(queries, database, cfg), cfg, *_keep(cfg, keep_from, keep_top))
-    return pairs.bounds(range(len(queries)), workers)
-
-
-def _check_no_height(cfg: MatchConfig, what: str) -> None:
-    """The pruned search bounds the shape-tree cost ψ alone: refuse ``height_weight``."""
-    if cfg.height_weight > 0:
-        raise ShapeTreeError(
-            f"{what} (the pruned nearest-neighbour search) bounds the shape-tree cost alone "
-            "and does not support height_weight > 0: compute the full distance matrix "
-            "instead (distance_matrix, or `shapetree distances` without --neighbours)"
-        )
+    fwd, bwd, heights = _prepared(queries, database, cfg)
+    pairs = _Pairs(fwd, bwd, cfg, *_keep(cfg, keep_from, keep_top), heights)
+    rows = range(len(queries))
+    return pairs.fused_bounds(rows, pairs.height_rows(rows, workers), workers)
 
 
 def _knn_rows(
@@ -366,8 +436,10 @@ def _knn_rows(
     query and the timings."""
     t0 = time.perf_counter()
     nq, nd = len(rows), pairs.nd
-    bound = pairs.bounds(rows, workers)
-    t_bound = time.perf_counter() - t0
+    h = pairs.height_rows(rows, workers)
+    t_height = time.perf_counter() - t0
+    bound = pairs.fused_bounds(rows, h, workers)
+    t_bound = time.perf_counter() - t0 - t_height
     order = np.argsort(bound, axis=1, kind="stable")
     dist = np.full((nq, nd), np.inf)
     done = np.zeros((nq, nd), dtype=bool)
@@ -400,6 +472,9 @@ def _knn_rows(
         rounds += 1
         t1 = time.perf_counter()
         c = pairs.costs([(rows[q], x) for q, x in todo], workers)
+        if h is not None:
+            qs, xs = np.array(todo).T
+            c = fuse_height(c, h[qs, xs], pairs.w)
         t_full += time.perf_counter() - t1
         for (q, x), v in zip(todo, c):
             dist[q, x] = v
@@ -414,7 +489,12 @@ def _knn_rows(
         rank = comp[np.lexsort((comp, dist[q, comp]))][:k]
         idx[q] = rank
         out[q] = dist[q, rank]
-    timing = {"bound_seconds": t_bound, "full_seconds": t_full, "rounds": rounds}
+    timing = {
+        "bound_seconds": t_bound,
+        "height_seconds": t_height,
+        "full_seconds": t_full,
+        "rounds": rounds,
+    }
     return idx, out, done.sum(axis=1), timing
 
 
@@ -430,8 +510,8 @@ def _block_result(
 
 
 def knn_block(
-    block: tuple[list | None, list | None],
-    shared: tuple[list | None, list | None],
+    block: tuple[list | None, list | None, list | None],
+    shared: tuple[list | None, list | None, list | None],
     cfg: MatchConfig,
     keep_from: int | None,
     keep_top: int,
@@ -440,14 +520,16 @@ def knn_block(
 ) -> tuple[np.ndarray, dict[str, float]]:
     """One block of queries of :func:`knn`, from sampled curves alone (a Dask task).
 
-    ``block = (query models, query targets)`` of the block's queries and ``shared =
-    (database targets, database models)``, each ``None`` where the configuration's
-    direction does not need it (:func:`_prepared`). Returns what a thread computes for
-    the same rows: the block array and its timings."""
-    (qm, qt), (dt, dm) = block, shared
+    ``block = (query models, query targets, query height descriptors)`` of the block's
+    queries and ``shared = (database targets, database models, database height
+    descriptors)``, each ``None`` where the configuration does not need it
+    (:func:`_prepared`). Returns what a thread computes for the same rows: the block array
+    and its timings."""
+    (qm, qt, qh), (dt, dm, dh) = block, shared
     fwd = (qm, dt) if qm is not None else None
     bwd = (dm, qt) if qt is not None else None
-    pairs = _Pairs(fwd, bwd, cfg, keep_from, keep_top)
+    heights = (qh, dh) if qh is not None else None
+    pairs = _Pairs(fwd, bwd, cfg, keep_from, keep_top, heights)
     return _block_result(pairs, list(range(pairs.nq)), k, step, 1)
 
 
@@ -481,7 +563,8 @@ def knn(
         Matcher configuration or preset name (default: the ``general`` preset, or the
         configuration of a ``ShapeIndex`` given); it needs ``n_points`` (every curve
         resampled to one size). Every ``symmetrize`` is supported (``"none"``: ``D[q, x]
-        = ψ(q onto x)``; the others bound both directions).
+        = ψ(q onto x)``; the others bound both directions), and so is the height-function
+        fusion (``height_weight > 0``, e.g. the ``fused`` preset; module docstring).
     k : int
         Neighbours per query (at most the database size).
     workers : int
@@ -491,7 +574,8 @@ def knn(
         tqdm progress bar over the queries, with ETA.
     stats : dict, optional
         Filled with ``pairs``, ``full`` (full matchings computed), ``skipped`` (their
-        complement, as a fraction), ``rounds`` (the most of any block), ``bound_seconds``
+        complement, as a fraction), ``rounds`` (the most of any block), ``bound_seconds``,
+        ``height_seconds`` (the exact height-function distances of the fusion, 0 without)
         and ``full_seconds`` (summed over blocks), ``seconds`` (wall), ``blocks``,
         ``blocks_cached`` and, per query, ``full_per_query``.
     keep_from, keep_top : int, None or "auto"
@@ -534,7 +618,6 @@ def knn(
     t_start = time.perf_counter()
     queries, database = _source(queries), _source(database)
     cfg = _resolve(config, options, queries, database)
-    _check_no_height(cfg, "knn")
     workers = _check_int("workers", workers, 1)
     k = _check_int("k", k, 1)
     keep_from, keep_top = _keep(cfg, keep_from, keep_top)
@@ -559,9 +642,9 @@ def knn(
     idx = np.empty((nq, k), dtype=np.int64)
     dist = np.empty((nq, k))
     full = np.zeros(nq, dtype=np.int64)
-    timing = {"bound_seconds": 0.0, "full_seconds": 0.0, "rounds": 0}
-    fwd, bwd = _prepared(queries, database, cfg)
-    key = _pairs_key(fwd, bwd, cfg, f"shapetree-knn k={k}")
+    timing = {"bound_seconds": 0.0, "height_seconds": 0.0, "full_seconds": 0.0, "rounds": 0}
+    fwd, bwd, heights = _prepared(queries, database, cfg)
+    key = _pairs_key(fwd, bwd, cfg, f"shapetree-knn k={k}", heights)
     folder = None
     if cache_dir is not None:
         folder = Path(cache_dir) / f"knn-{key[:32]}"
@@ -593,8 +676,8 @@ def knn(
             write_block(_block_path(folder, r0, r1), arr, meta(r0, r1))
         with lock:
             store(r0, r1, arr)
-            timing["bound_seconds"] += bt["bound_seconds"]
-            timing["full_seconds"] += bt["full_seconds"]
+            for name in ("bound_seconds", "height_seconds", "full_seconds"):
+                timing[name] += bt[name]
             timing["rounds"] = max(timing["rounds"], bt["rounds"])
 
     try:
@@ -603,13 +686,19 @@ def knn(
 
             qm = fwd[0] if fwd is not None else None
             qt = bwd[1] if bwd is not None else None
-            shared = (fwd[1] if fwd is not None else None, bwd[0] if bwd is not None else None)
+            qh = heights[0] if heights is not None else None
+            shared = (
+                fwd[1] if fwd is not None else None,
+                bwd[0] if bwd is not None else None,
+                heights[1] if heights is not None else None,
+            )
             search = (cfg, keep_from, keep_top, k, step)
 
             def task_args(r0: int, r1: int, sh: Any) -> tuple:
                 qm_b = qm[r0:r1] if qm is not None else None
                 qt_b = qt[r0:r1] if qt is not None else None
-                return (qm_b, qt_b), sh, search
+                qh_b = qh[r0:r1] if qh is not None else None
+                return (qm_b, qt_b, qh_b), sh, search
 
             run_tasks(
                 sched,
@@ -623,7 +712,7 @@ def knn(
                 bar=bar,
             )
         elif todo:
-            pairs = _Pairs(fwd, bwd, cfg, keep_from, keep_top)
+            pairs = _Pairs(fwd, bwd, cfg, keep_from, keep_top, heights)
             inner = workers if len(todo) <= 1 else 1
 
             def job(r0: int, r1: int) -> None:
