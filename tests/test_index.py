@@ -105,6 +105,22 @@ def test_search_and_distances_equal_the_curves(saved: Path, curves, query):
     np.testing.assert_array_equal(a, b)
 
 
+def test_fused_database_with_the_pruned_search(tmp_path: Path, curves, query):
+    """A database built under the height-function fusion keeps the outlines its ``h`` is
+    computed from: ``knn`` on it (file name or object) equals exhaustive search of the
+    curves, indices and distances bitwise."""
+    from shapetree.retrieval import knn
+
+    fused = MatchConfig.preset("fused", n_points=16, height_points=24)
+    path = ShapeIndex.build(curves, NAMES, fused).save(tmp_path / "fused.stidx")
+    ref_i, ref_d = search(query, curves, fused, k=3, workers=1)
+    for db in (path, ShapeIndex.load(path)):
+        idx, dist = knn([query], db, k=3, workers=1)
+        np.testing.assert_array_equal(idx[0], ref_i)
+        np.testing.assert_array_equal(dist[0], ref_d)
+    assert NAMES[ref_i[0]] == "hand"
+
+
 def test_another_config_is_refused(saved: Path, curves, query):
     want = r"another matcher configuration: n_points=16 \(asked: 20\)"
     with pytest.raises(ShapeTreeError, match=want):
