@@ -55,7 +55,7 @@ def add_config_options(parser: argparse.ArgumentParser) -> None:
         help="starting configuration: general (the default of every entry point, chosen "
         "leave-one-dataset-out), paper (the method as published), fused (64 points, 3 "
         "trees, fused with the height-function distance: the most accurate held out, "
-        "about 1.1x general's time per pair), or the configuration tuned on one "
+        "about 1.06x general's time per pair), or the configuration tuned on one "
         "benchmark (kimia99, mpeg7, swedish_leaf)",
     )
     general = PRESETS["general"]
