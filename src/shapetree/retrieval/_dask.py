@@ -621,10 +621,12 @@ def run_tasks(
                 # makes the scheduler broadcast an empty "cancelled-keys" to every client,
                 # and one that lands in a connecting client's first batch fails its
                 # handshake (see _connect).
-                pending = [f for f in futures if not f.done()]
+                pending = []
                 for f in futures:
                     if f.done():
                         f.release()
+                    else:
+                        pending.append(f)
                 if pending:
                     client.cancel(pending)
                 scattered.release()

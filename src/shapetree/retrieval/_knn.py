@@ -177,6 +177,20 @@ def _chunks(items: Sequence[int], n: int) -> list[list[int]]:
     return [list(items[i::n]) for i in range(n)]
 
 
+def _each(items: Sequence[int], fn: Callable[[int], None], workers: int) -> None:
+    """``fn(i)`` for every item, the items split into ``workers`` interleaved chunks that run
+    side by side (``fn`` writes its own part of an output; the kernels release the GIL)."""
+
+    def chunk(js: list[int]) -> Callable[[], None]:
+        def run() -> None:
+            for j in js:
+                fn(j)
+
+        return run
+
+    _run([chunk(js) for js in _chunks(items, workers)], workers)
+
+
 def _combine(fwd: np.ndarray | None, bwd: np.ndarray | None, sym: str) -> np.ndarray:
     if sym == "none":
         assert fwd is not None
@@ -277,29 +291,21 @@ class _Pairs:
         fwd = bwd = None
         if self.fwd is not None:
             fwd = np.empty((len(rows), self.nd))
-            stack = self.fwd.bound_stack(rows)
+            fstack = self.fwd.bound_stack(rows)
 
-            def fjob(js: list[int]) -> Callable[[], None]:
-                def run() -> None:
-                    for j in js:
-                        fwd[:, j] = self.fwd.bounds_for_target(j, rows, stack)
+            def column(j: int) -> None:
+                fwd[:, j] = self.fwd.bounds_for_target(j, rows, fstack)
 
-                return run
-
-            _run([fjob(js) for js in _chunks(range(self.nd), workers)], workers)
+            _each(range(self.nd), column, workers)
         if self.bwd is not None:
             bwd = np.empty((len(rows), self.nd))
             every = list(range(self.nd))
-            stack = self.bwd.shared_stack(every)
+            bstack = self.bwd.shared_stack(every)
 
-            def bjob(qs: list[int]) -> Callable[[], None]:
-                def run() -> None:
-                    for i in qs:
-                        bwd[i] = self.bwd.bounds_for_target(rows[i], every, stack)
+            def row(i: int) -> None:
+                bwd[i] = self.bwd.bounds_for_target(rows[i], every, bstack)
 
-                return run
-
-            _run([bjob(qs) for qs in _chunks(range(len(rows)), workers)], workers)
+            _each(range(len(rows)), row, workers)
         return np.maximum(_combine(fwd, bwd, self.sym), 0.0)
 
     def fused_bounds(
@@ -323,28 +329,20 @@ class _Pairs:
         if self.sym != "reverse":
             stack = HeightRows([hq[r] for r in rows], hp)
 
-            def fjob(js: list[int]) -> Callable[[], None]:
-                def run() -> None:
-                    for j in js:
-                        out[:, j] = stack.against(hd[j])
+            def column(j: int) -> None:
+                out[:, j] = stack.against(hd[j])
 
-                return run
-
-            _run([fjob(js) for js in _chunks(range(self.nd), workers)], workers)
+            _each(range(self.nd), column, workers)
             return out
         with self._lock:
             if self._height_db is None:
                 self._height_db = HeightRows(hd, hp)
             db = self._height_db
 
-        def bjob(qs: list[int]) -> Callable[[], None]:
-            def run() -> None:
-                for i in qs:
-                    out[i] = db.against(hq[rows[i]])
+        def row(i: int) -> None:
+            out[i] = db.against(hq[rows[i]])
 
-            return run
-
-        _run([bjob(qs) for qs in _chunks(range(len(rows)), workers)], workers)
+        _each(range(len(rows)), row, workers)
         return out
 
     def costs(self, pairs: list[tuple[int, int]], workers: int = 1) -> np.ndarray:
@@ -364,18 +362,12 @@ class _Pairs:
         for i, (j, _row) in enumerate(by_target):
             groups.setdefault(j, []).append(i)
         out = np.empty(len(by_target))
-        keys = sorted(groups)
 
-        def job(js: list[int]) -> Callable[[], None]:
-            def run() -> None:
-                for j in js:
-                    idx = groups[j]
-                    rows = [by_target[i][1] for i in idx]
-                    out[idx] = d.costs_for_target(j, rows)
+        def target(j: int) -> None:
+            idx = groups[j]
+            out[idx] = d.costs_for_target(j, [by_target[i][1] for i in idx])
 
-            return run
-
-        _run([job(js) for js in _chunks(keys, workers)], workers)
+        _each(sorted(groups), target, workers)
         return out
 
 
