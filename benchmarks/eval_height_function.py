@@ -57,7 +57,7 @@ import eval_beyond as base  # noqa: E402
 
 from shapetree._bench import protocol_score  # noqa: E402
 from shapetree.curves import as_curve  # noqa: E402
-from shapetree.matching import _height  # noqa: E402
+from shapetree.matching import MatchConfig, _height  # noqa: E402
 from shapetree.matching._height import HeightParams  # noqa: E402
 from shapetree.retrieval import combine, directed_costs  # noqa: E402
 
@@ -197,10 +197,12 @@ def choose(target: str, subsets: dict[str, dict[str, Any]]) -> dict[str, Any]:
     return _knob.choose(KNOB, target, subsets)
 
 
-def full_score(name: str, w: float, cache: Path, hp: HeightParams = DEFAULT) -> dict[str, Any]:
-    """The base configuration's full-set score without and with the fusion weight ``w``
-    (of the height-function form ``hp``)."""
-    curves, labels, D, seconds = _knob.full_base(name, CONFIG, cache)
+def full_score(
+    name: str, w: float, cache: Path, hp: HeightParams = DEFAULT, config: MatchConfig = CONFIG
+) -> dict[str, Any]:
+    """The base configuration's (``config``) full-set score without and with the fusion
+    weight ``w`` (of the height-function form ``hp``)."""
+    curves, labels, D, seconds = _knob.full_base(name, config, cache)
     t0 = time.perf_counter()
     H = cached_hf_matrix(curves, cache, hp)
     seconds_hf = time.perf_counter() - t0

@@ -64,6 +64,7 @@ import eval_beyond as base  # noqa: E402
 import eval_height_function as hf  # noqa: E402
 import kimia_cv  # noqa: E402
 
+from shapetree.matching import MatchConfig  # noqa: E402
 from shapetree.matching._height import HeightParams  # noqa: E402
 from shapetree.retrieval import combine, directed_costs  # noqa: E402
 
@@ -99,14 +100,13 @@ def parse(value: str) -> tuple[HeightParams | None, float]:
     return FORMS[form], float(w)
 
 
-def subset_scores(cache: Path) -> dict[str, dict[str, Any]]:
-    """Every grid value's score on each selection subset (and Kimia-99's rows)."""
+def subset_scores(cache: Path, config: MatchConfig = hf.CONFIG) -> dict[str, dict[str, Any]]:
+    """Every grid value's score on each selection subset (and Kimia-99's rows), fused on
+    the base ``config``."""
     out: dict[str, dict[str, Any]] = {}
     for name in base.TARGETS:
         curves, labels = base.load_subset(name)
-        D = combine(
-            directed_costs(curves, None, hf.CONFIG, cache_dir=cache, progress=False), "none"
-        )
+        D = combine(directed_costs(curves, None, config, cache_dir=cache, progress=False), "none")
         H: dict[str, np.ndarray] = {}
         seconds: dict[str, float] = {}
         for label, hp in FORMS.items():
@@ -154,16 +154,23 @@ def class_cv(matrices: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, A
     }
 
 
-def full_score(name: str, value: str, cache: Path) -> dict[str, Any]:
-    """The base configuration's full-set score without and with the chosen form and weight
-    (``eval_height_function.full_score`` of that form), and, where the target is missed
-    (Swedish leaf), a retrieval grid of the fused matrix's 8 worst queries."""
+def full_score(
+    name: str,
+    value: str,
+    cache: Path,
+    config: MatchConfig = hf.CONFIG,
+    png_stem: str = "beyond_paper_height_variants",
+) -> dict[str, Any]:
+    """The base configuration's (``config``) full-set score without and with the chosen form
+    and weight (``eval_height_function.full_score`` of that form), and, where the target is
+    missed (Swedish leaf), a retrieval grid of the fused matrix's 8 worst queries
+    (``<png_stem>_<name>_worst.png``)."""
     hp, w = parse(value)
     assert hp is not None
-    rec = {"form": asdict(hp), **hf.full_score(name, w, cache, hp)}
+    rec = {"form": asdict(hp), **hf.full_score(name, w, cache, hp, config)}
     if name == "swedish_leaf":
-        curves, labels, D, _ = _knob.full_base(name, hf.CONFIG, cache)
-        png = _knob.RESULTS / f"beyond_paper_height_variants_{name}_worst.png"
+        curves, labels, D, _ = _knob.full_base(name, config, cache)
+        png = _knob.RESULTS / f"{png_stem}_{name}_worst.png"
         fused = hf.fuse(D, hf.cached_hf_matrix(curves, cache, hp), w)
         rec["worst_queries"] = base.worst_grid(name, fused, labels, curves, png)
         rec["worst_grid"] = png.name

@@ -49,6 +49,7 @@ import eval_height_function as hf  # noqa: E402
 import eval_height_variants as hv  # noqa: E402
 from _common import RESULTS, machine, write_json  # noqa: E402
 
+from shapetree.matching import MatchConfig  # noqa: E402
 from shapetree.retrieval._protocols import split_masks  # noqa: E402
 
 PAPER = 96.28
@@ -130,14 +131,12 @@ def training_cv(
     }
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--cache-dir", default=str(Path.home() / ".cache/shapetree/beyond"))
-    ap.add_argument("--json", default=str(RESULTS / "swedish_cv.json"))
-    args = ap.parse_args(argv)
-    cache = Path(args.cache_dir)
-    t0 = time.perf_counter()
-    curves, labels, D, _ = _knob.full_base("swedish_leaf", hf.CONFIG, cache)
+def estimates(
+    config: MatchConfig, cache: Path
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, float]]:
+    """The two estimates (by species, by training leaves) over ``eval_height_variants``'s
+    grid fused on the base ``config``, and every value's in-sample accuracy."""
+    curves, labels, D, _ = _knob.full_base("swedish_leaf", config, cache)
     p = _knob.PROTOCOL
     masks = split_masks(labels, p["n_train"], p["n_splits"], p["seed"])
     H = {label: hf.cached_hf_matrix(curves, cache, hp) for label, hp in hv.FORMS.items()}
@@ -149,8 +148,18 @@ def main(argv: list[str] | None = None) -> int:
         loo[v] = loo_hits(Dv, labels, masks)
     n_test = int((~np.stack(masks)).sum())
     by_value = {v: round(100.0 * float(h.sum()) / n_test, 4) for v, h in hits.items()}
-    rec = species_cv(hits, labels, masks, hv.GRID)
-    rec_train = training_cv(hits, loo, masks, hv.GRID)
+    species = species_cv(hits, labels, masks, hv.GRID)
+    return species, training_cv(hits, loo, masks, hv.GRID), by_value
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--cache-dir", default=str(Path.home() / ".cache/shapetree/beyond"))
+    ap.add_argument("--json", default=str(RESULTS / "swedish_cv.json"))
+    args = ap.parse_args(argv)
+    cache = Path(args.cache_dir)
+    t0 = time.perf_counter()
+    rec, rec_train, by_value = estimates(hf.CONFIG, cache)
     out = {
         "command": "python3 benchmarks/swedish_cv.py",
         "measure": "pairwise: each distance depends only on the two shapes (no re-ranking)",
