@@ -484,3 +484,29 @@ def test_fused_preset_is_the_committed_choice() -> None:
     assert full["mpeg7"]["held_out"]["bullseye"] > full["mpeg7"]["without_fusion"]
     sw = full["swedish_leaf"]
     assert sw["held_out"]["accuracy_mean"] > sw["without_fusion"]
+
+
+def test_height_n100_base_is_the_no_time_limit_held_out_choice() -> None:
+    """``eval_height_n100``'s base is the candidate ``eval_tree_combine``'s held-out rule
+    chose for every set with no time limit (the committed record), its grid is
+    ``eval_height_variants``'s, and its committed choices follow the same rule."""
+    hn = pytest.importorskip("eval_height_n100")
+    tc = pytest.importorskip("eval_tree_combine")
+    assert tc.new_candidates()[hn.BASE_LABEL] == hn.CONFIG
+    assert hn.CONFIG == hn.hf.CONFIG.replace(n_points=100)  # only the points differ
+    tree = json.loads((hn._knob.RESULTS / "beyond_paper_tree_mean.json").read_text())
+    for c in tree["held_out_choice_over_18"].values():
+        assert c["no_time_limit_choice"] == hn.BASE_LABEL
+    assert hn.KNOB.grid == hn.hv.GRID and hn.KNOB.off == hn.hv.OFF
+    path = hn._knob.RESULTS / hn.KNOB.json_name
+    if not path.exists():
+        pytest.skip("no committed record yet")
+    rec = json.loads(path.read_text())
+    assert rec["base"] == hn.BASE_LABEL and rec["config"] == hn.CONFIG.as_dict()
+    for target, c in rec["held_out_choice"].items():
+        assert target not in c["selected_on"]
+        assert (
+            c["chosen_form_w"] == hn._knob.choose(hn.KNOB, target, rec["subsets"])["chosen_form_w"]
+        )
+    for name, run in rec["full_runs"].items():
+        assert run["w"] == hn.hv.parse(rec["held_out_choice"][name]["chosen_form_w"])[1]
