@@ -510,3 +510,13 @@ def test_height_n100_base_is_the_no_time_limit_held_out_choice() -> None:
         )
     for name, run in rec["full_runs"].items():
         assert run["w"] == hn.hv.parse(rec["held_out_choice"][name]["chosen_form_w"])[1]
+    sw = rec["full_runs"].get("swedish_leaf")
+    if sw:  # the headline is the in-sample table's entry for the chosen value
+        chosen = rec["held_out_choice"]["swedish_leaf"]["chosen_form_w"]
+        assert sw["with"]["accuracy_mean"] == sw["in_sample_accuracy_by_value"][chosen]
+        without = rec["without_complexity_forms"]["swedish_leaf"]
+        assert "+C" not in without["chosen_form_w"]
+        assert (
+            without["full_set_accuracy"]
+            == sw["in_sample_accuracy_by_value"][without["chosen_form_w"]]
+        )
