@@ -128,18 +128,21 @@ def subset_scores(cache: Path, config: MatchConfig = hf.CONFIG) -> dict[str, dic
     return out
 
 
-def class_cv(matrices: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, Any]:
+def class_cv(
+    matrices: dict[str, np.ndarray], labels: np.ndarray, grid: tuple[str, ...] = GRID
+) -> dict[str, Any]:
     """Kimia-99's second held-out estimate: ``kimia_cv.py``'s leave-one-class-out protocol
-    over this grid. For each of the nine classes the value is chosen by the sum of the rank
-    rows of the other eight classes' queries (ties: the earlier grid value), and the held-out
-    class's 11 queries are scored with it; the nine folds add up to one rank row."""
+    over ``grid`` (this script's by default). For each of the nine classes the value is
+    chosen by the sum of the rank rows of the other eight classes' queries (ties: the
+    earlier grid value), and the held-out class's 11 queries are scored with it; the nine
+    folds add up to one rank row."""
     hits = {v: kimia_cv.query_hits(D, labels) for v, D in matrices.items()}
     row = np.zeros(next(iter(hits.values())).shape[1], int)
     folds = {}
     for c in sorted(set(labels.tolist())):
         train = labels != c
         score = {v: int(h[train].sum()) for v, h in hits.items()}
-        chosen = min(GRID, key=lambda v: (-score[v], GRID.index(v)))
+        chosen = min(grid, key=lambda v: (-score[v], grid.index(v)))
         held = hits[chosen][~train].sum(axis=0)
         row += held
         folds[c] = {"chosen": chosen, "train_sum": score[chosen], "held_out_row": held.tolist()}

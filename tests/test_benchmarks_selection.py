@@ -520,3 +520,11 @@ def test_height_n100_base_is_the_no_time_limit_held_out_choice() -> None:
             without["full_set_accuracy"]
             == sw["in_sample_accuracy_by_value"][without["chosen_form_w"]]
         )
+    kim = rec["without_complexity_forms"]["kimia99"]
+    assert "+C" not in kim["chosen_form_w"]
+    assert kim["row"] == rec["subsets"]["kimia99"]["ranks"][kim["chosen_form_w"]]
+    folds = kim["class_cv"]["folds"].values()
+    assert all("+C" not in f["chosen"] for f in folds)
+    assert np.array_equal(
+        np.sum([f["held_out_row"] for f in folds], axis=0), kim["class_cv"]["held_out_row"]
+    )
