@@ -121,13 +121,15 @@ def run(
     header: dict[str, Any],
     subset_scores: Callable[[Path], dict[str, dict[str, Any]]],
     full_score: Callable[[str, float, Path], dict[str, Any]],
+    finish: Callable[[dict[str, Any], Path], None] | None = None,
 ) -> int:
     """Parse the command line, score the subsets, choose held out, run the full sets asked
     for, and write the JSON (after every stage, so a killed run leaves what it finished).
 
     ``header`` goes into the JSON after the command and the measure. ``subset_scores(cache)``
     returns, per set, ``{"scores": {str(value): score}}`` (Kimia-99 also ``"ranks"``);
-    ``full_score(name, value, cache)`` returns the full set's record.
+    ``full_score(name, value, cache)`` returns the full set's record; ``finish(out, cache)``,
+    if given, adds the script's own last records to the output before it is written.
     """
     ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--cache-dir", default=str(Path.home() / ".cache/shapetree/beyond"))
@@ -179,6 +181,8 @@ def run(
         write_json(path, out)
         shown = {a: b for a, b in rec.items() if a not in ("command", "machine")}
         print(f"{name}: {s} = {v}: {shown}", flush=True)
+    if finish is not None:
+        finish(out, cache)
     out["seconds"] = round(time.perf_counter() - t0, 1)
     out["machine"] = machine()
     write_json(path, out)

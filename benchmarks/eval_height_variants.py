@@ -100,6 +100,14 @@ def parse(value: str) -> tuple[HeightParams | None, float]:
     return FORMS[form], float(w)
 
 
+def grid_matrix(D: np.ndarray, H: dict[str, np.ndarray], value: str) -> np.ndarray:
+    """The distances of one grid value: the base matrix ``D`` fused with the height matrix
+    of the value's form (``H`` keyed by :func:`eval_height_function.label`), or ``D``
+    itself for ``w = 0``."""
+    hp, w = parse(value)
+    return D if hp is None else hf.fuse(D, H[hf.label(hp)], w)
+
+
 def subset_scores(cache: Path, config: MatchConfig = hf.CONFIG) -> dict[str, dict[str, Any]]:
     """Every grid value's score on each selection subset (and Kimia-99's rows), fused on
     the base ``config``."""
@@ -115,8 +123,7 @@ def subset_scores(cache: Path, config: MatchConfig = hf.CONFIG) -> dict[str, dic
             seconds[label] = round(time.perf_counter() - t0, 1)
 
         def matrix(value: str, D: np.ndarray = D, H: dict = H) -> np.ndarray:
-            hp, w = parse(value)
-            return D if hp is None else hf.fuse(D, H[hf.label(hp)], w)
+            return grid_matrix(D, H, value)
 
         rec = _knob.grid_scores(name, labels, GRID, matrix)
         rec["hf_seconds"] = seconds

@@ -142,8 +142,7 @@ def estimates(
     H = {label: hf.cached_hf_matrix(curves, cache, hp) for label, hp in hv.FORMS.items()}
     hits, loo = {}, {}
     for v in hv.GRID:
-        hp, w = hv.parse(v)
-        Dv = D if hp is None else hf.fuse(D, H[hf.label(hp)], w)
+        Dv = hv.grid_matrix(D, H, v)
         hits[v] = split_hits(Dv, labels, masks)
         loo[v] = loo_hits(Dv, labels, masks)
     n_test = int((~np.stack(masks)).sum())

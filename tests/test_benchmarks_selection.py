@@ -498,10 +498,7 @@ def test_height_n100_base_is_the_no_time_limit_held_out_choice() -> None:
     for c in tree["held_out_choice_over_18"].values():
         assert c["no_time_limit_choice"] == hn.BASE_LABEL
     assert hn.KNOB.grid == hn.hv.GRID and hn.KNOB.off == hn.hv.OFF
-    path = hn._knob.RESULTS / hn.KNOB.json_name
-    if not path.exists():
-        pytest.skip("no committed record yet")
-    rec = json.loads(path.read_text())
+    rec = json.loads((hn._knob.RESULTS / hn.KNOB.json_name).read_text())
     assert rec["base"] == hn.BASE_LABEL and rec["config"] == hn.CONFIG.as_dict()
     for target, c in rec["held_out_choice"].items():
         assert target not in c["selected_on"]
@@ -510,16 +507,15 @@ def test_height_n100_base_is_the_no_time_limit_held_out_choice() -> None:
         )
     for name, run in rec["full_runs"].items():
         assert run["w"] == hn.hv.parse(rec["held_out_choice"][name]["chosen_form_w"])[1]
-    sw = rec["full_runs"].get("swedish_leaf")
-    if sw:  # the headline is the in-sample table's entry for the chosen value
-        chosen = rec["held_out_choice"]["swedish_leaf"]["chosen_form_w"]
-        assert sw["with"]["accuracy_mean"] == sw["in_sample_accuracy_by_value"][chosen]
-        without = rec["without_complexity_forms"]["swedish_leaf"]
-        assert "+C" not in without["chosen_form_w"]
-        assert (
-            without["full_set_accuracy"]
-            == sw["in_sample_accuracy_by_value"][without["chosen_form_w"]]
-        )
+    sw = rec["full_runs"]["swedish_leaf"]
+    # the headline is the in-sample table's entry for the chosen value
+    chosen = rec["held_out_choice"]["swedish_leaf"]["chosen_form_w"]
+    assert sw["with"]["accuracy_mean"] == sw["in_sample_accuracy_by_value"][chosen]
+    without = rec["without_complexity_forms"]["swedish_leaf"]
+    assert "+C" not in without["chosen_form_w"]
+    assert (
+        without["full_set_accuracy"] == sw["in_sample_accuracy_by_value"][without["chosen_form_w"]]
+    )
     kim = rec["without_complexity_forms"]["kimia99"]
     assert "+C" not in kim["chosen_form_w"]
     assert kim["row"] == rec["subsets"]["kimia99"]["ranks"][kim["chosen_form_w"]]
