@@ -51,6 +51,19 @@ def test_edge_map_blank_and_grey_and_errors() -> None:
         edge_map(g, method="canny")
 
 
+def test_load_image_names_a_too_small_file(tmp_path) -> None:
+    from PIL import Image
+
+    from shapetree.detection import load_image
+
+    Image.new("RGB", (2, 5)).save(tmp_path / "tiny.png")
+    with pytest.raises(ImageError, match=r"tiny\.png is 2x5 pixels; at least 3x3"):
+        load_image(tmp_path / "tiny.png")
+    Image.new("L", (3, 4), 128).save(tmp_path / "ok.png")
+    im = load_image(tmp_path / "ok.png")
+    assert im.shape == (4, 3, 3) and np.allclose(im, 128 / 255)
+
+
 def test_load_edges_reads_8bit(tmp_path) -> None:
     from PIL import Image
 

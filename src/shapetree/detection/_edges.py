@@ -58,7 +58,8 @@ def load_image(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     ------
     ImageError
         If the file is missing or unreadable, larger than
-        :func:`shapetree.curves._image.max_image_pixels`, or the image is empty.
+        :func:`shapetree.curves._image.max_image_pixels`, or the image is empty or
+        smaller than 3x3 pixels.
     """
     from PIL import UnidentifiedImageError
 
@@ -74,6 +75,10 @@ def load_image(path: str | os.PathLike[str]) -> NDArray[np.float64]:
         raise ImageError(f"cannot read image {p}: {exc}") from exc
     if arr.size == 0:
         raise ImageError(f"image {p} is empty")
+    if min(arr.shape[:2]) < 3:
+        raise ImageError(
+            f"image {p} is {arr.shape[1]}x{arr.shape[0]} pixels; at least 3x3 are needed"
+        )
     return arr
 
 
