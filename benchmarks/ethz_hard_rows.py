@@ -55,6 +55,7 @@ from _common import RESULTS, machine, write_json  # noqa: E402
 from ethz_collection_terms import SHIPPED  # noqa: E402
 from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
 
+from shapetree.detection import DetectParams  # noqa: E402
 from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
 
 RESCORER_TERMS = SHIPPED + TEMPLATE_TERMS
@@ -148,7 +149,9 @@ def main() -> None:
     sc = V._Scorer(root, rows, len(_images(root)))
     label = sc.col("iou") >= 0.2
     x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
-    rank = image_rank(np.array([r["key"] for r in rows]), sc.cls, sc.col("score"))
+    # the detector's own score: base + context_check * context (the rows keep them apart)
+    score = sc.col("base") + DetectParams().context_check * sc.col("context")
+    rank = image_rank(np.array([r["key"] for r in rows]), sc.cls, score)
     classes = list(ETHZ_CLASSES)
     out: dict = {"protocol": __doc__, "edges": args.edges, "terms": list(RESCORER_TERMS)}
     inner = {
