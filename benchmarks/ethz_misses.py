@@ -1,0 +1,145 @@
+"""ETHZ: where the objects missed at 0.4 FPPI are, and what outranks them.
+
+A diagnosis of the shipped re-scorer's held-out ranking, not a new method. For each class,
+each detection is scored by the re-scorer chosen and fitted on the other four classes (the
+term set and L2 penalty chosen inside the fold, as ``ethz_template.py``'s
+``set_chosen_in_each_fold``: the headline held-out figure), and the ranking is cut where
+the false positives reach 0.4 per image. Then:
+
+- each ground-truth object below the cut is put in one of three groups: its image's *best*
+  detection overlaps it (the right hypothesis won in its image and lost to other images),
+  a *lower* detection of its image overlaps it (it lost inside its own image), or *none* of
+  the image's kept detections overlaps it (no ranking can find it);
+- each false positive above the cut is counted by the class of the image it is in, and by
+  its rank inside that image.
+
+Both under the 20% rule and PASCAL's 50% (the overlap that counts as a hit). Usage::
+
+    python3 benchmarks/ethz_misses.py --rows ROWS_OF_ethz_template.py
+
+Writes ``benchmarks/results/ethz_misses_pb.json`` (or ``--json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import ethz_verify as V  # noqa: E402
+from _common import RESULTS, machine, write_json  # noqa: E402
+from ethz_collection_terms import SHIPPED  # noqa: E402
+from ethz_hard_rows import image_rank  # noqa: E402
+from ethz_template import CANDIDATES, _inner_best  # noqa: E402
+
+from shapetree.detection._ethz_eval import (  # noqa: E402
+    ETHZ_CLASSES,
+    _images,
+    _iou,
+    dr_at_fppi,
+    dr_fppi_curve,
+    ethz_root,
+)
+
+FPPI = 0.4
+
+
+def held_out_scores(sc, label) -> tuple[np.ndarray, dict]:
+    """Every row scored by the re-scorer chosen and fitted without its class."""
+    x_of = {n: np.stack([sc.col(t) for t in SHIPPED + e], 1) for n, e in CANDIDATES.items()}
+    s = np.zeros(len(label))
+    chosen = {}
+    classes = list(ETHZ_CLASSES)
+    for c in classes:
+        inner = [k for k in classes if k != c]
+        res = {n: _inner_best(sc, x, label, inner) for n, x in x_of.items()}
+        name = max(res, key=lambda n: res[n])
+        chosen[c] = {"set": name, "l2": res[name][1]}
+        r = sc.cls == c
+        s[r] = V._fit_score(x_of[name], label, sc.cls != c, res[name][1])[r]
+    return s, chosen
+
+
+def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
+    """The groups of one class's misses and its false positives above the cut."""
+    idx = np.flatnonzero(sc.cls == cls)
+    gts = sc.gts[cls]
+    dets = [(rows[i]["key"], float(s[i]), rows[i]["bbox"]) for i in idx]
+    fppi, dr, scores = dr_fppi_curve(dets, gts, sc.n, thr)
+    cut_dr = dr_at_fppi(fppi, dr, FPPI)
+    # the last position of the curve at that DR within the FPPI limit: the cut
+    ok = np.flatnonzero((fppi <= FPPI + 1e-12) & (dr == cut_dr))
+    n_top = int(ok[-1]) + 1 if len(ok) else 0
+    order = sorted(range(len(dets)), key=lambda i: -dets[i][1])[:n_top]
+    claimed = {k: np.zeros(len(g), bool) for k, g in gts.items()}
+    fp_folder, fp_rank = Counter(), Counter()
+    for j in order:  # the same greedy claim as dr_fppi_curve
+        key, _, box = dets[j]
+        g = gts.get(key)
+        if g is not None and len(g):
+            ious = _iou(np.asarray(box, float), g)
+            ious[claimed[key]] = -1.0
+            b = int(np.argmax(ious))
+            if ious[b] >= thr:
+                claimed[key][b] = True
+                continue
+        fp_folder[key.split("/")[0]] += 1
+        fp_rank[int(rank[idx[j]])] += 1
+    groups = Counter()
+    for key, g in gts.items():
+        mine = [i for i in idx if rows[i]["key"] == key]
+        for b, box in enumerate(g):
+            if claimed[key][b]:
+                continue
+            over = [_iou(np.asarray(rows[i]["bbox"], float), box[None])[0] for i in mine]
+            hits = [rank[i] for i, v in zip(mine, over) if v >= thr]
+            groups["none" if not hits else "best" if min(hits) == 1 else "lower"] += 1
+    n_gt = sum(len(g) for g in gts.values())
+    return {
+        "objects": n_gt,
+        "found": int(round(cut_dr * n_gt)),
+        "dr": round(cut_dr, 4),
+        "missed": {k: groups.get(k, 0) for k in ("best", "lower", "none")},
+        "false_positives_by_image_folder": dict(fp_folder.most_common()),
+        "false_positives_by_rank_in_image": dict(sorted(fp_rank.items())),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
+    ap.add_argument("--data", default=None)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    root = ethz_root(args.data)
+    rows = json.loads(Path(args.rows).read_text())
+    sc = V._Scorer(root, rows, len(_images(root)))
+    label = sc.col("iou") >= 0.2
+    s, chosen = held_out_scores(sc, label)
+    rank = image_rank(np.array([r["key"] for r in rows]), sc.cls, s)
+    out: dict = {"protocol": __doc__, "held_out_choice": chosen}
+    for name, thr in (("overlap_20", 0.2), ("overlap_50", 0.5)):
+        out[name] = {c: diagnose(sc, rows, s, rank, c, thr) for c in ETHZ_CLASSES}
+        print(name)
+        for c, d in out[name].items():
+            print(
+                f"  {c:10s} DR {d['dr']:.3f} ({d['found']}/{d['objects']}), missed {d['missed']}, "
+                f"FP by folder {d['false_positives_by_image_folder']}, "
+                f"by rank in image {d['false_positives_by_rank_in_image']}"
+            )
+    out["seconds"] = round(time.perf_counter() - t0, 1)
+    out["machine"] = machine()
+    out["command"] = "python3 benchmarks/ethz_misses.py " + " ".join(sys.argv[1:])
+    write_json(Path(args.json) if args.json else RESULTS / "ethz_misses_pb.json", out)
+
+
+if __name__ == "__main__":
+    main()
