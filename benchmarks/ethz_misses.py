@@ -13,7 +13,11 @@ the false positives reach 0.4 per image. Then:
 - each false positive above the cut is counted by the class of the image it is in, and by
   its rank inside that image.
 
-Both under the 20% rule and PASCAL's 50% (the overlap that counts as a hit). Usage::
+Both under the 20% rule and PASCAL's 50% (the overlap that counts as a hit). And, for
+every true detection (IoU >= 0.2) that is not its image's best while that best is false,
+the median difference of each term (the true one less the image's best), the share of
+such pairs where it is positive, and the ratio of their box areas: what a ranking inside
+the image would have to see (``inside_image``). Usage::
 
     python3 benchmarks/ethz_misses.py --rows ROWS_OF_ethz_template.py
 
@@ -38,6 +42,7 @@ from _common import RESULTS, machine, write_json  # noqa: E402
 from ethz_collection_terms import SHIPPED  # noqa: E402
 from ethz_hard_rows import image_rank  # noqa: E402
 from ethz_template import CANDIDATES, _inner_best  # noqa: E402
+from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
 
 from shapetree.detection._ethz_eval import (  # noqa: E402
     ETHZ_CLASSES,
@@ -112,6 +117,30 @@ def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
     }
 
 
+def inside_image(sc, rows, label, rank, cls: str) -> dict:
+    """True detections below a false best of their image: term differences to that best."""
+    keys = np.array([r["key"] for r in rows])
+    terms = SHIPPED + TEMPLATE_TERMS
+    diffs = []
+    for i in np.flatnonzero((sc.cls == cls) & label & (rank > 1)):
+        best = np.flatnonzero((sc.cls == cls) & (keys == keys[i]) & (rank == 1))[0]
+        if label[best]:
+            continue
+        a, b = np.asarray(rows[i]["bbox"], float), np.asarray(rows[best]["bbox"], float)
+        area = (a[2] - a[0]) * (a[3] - a[1]) / max((b[2] - b[0]) * (b[3] - b[1]), 1e-9)
+        diffs.append([rows[i][t] - rows[best][t] for t in terms] + [area])
+    if not diffs:
+        return {"pairs": 0}
+    d = np.array(diffs)
+    names = list(terms)
+    return {
+        "pairs": len(d),
+        "median_difference": {t: round(float(np.median(v)), 3) for t, v in zip(names, d.T)},
+        "share_positive": {t: round(float(np.mean(v > 0)), 2) for t, v in zip(names, d.T)},
+        "median_area_ratio": round(float(np.median(d[:, -1])), 2),
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
@@ -135,6 +164,10 @@ def main() -> None:
                 f"FP by folder {d['false_positives_by_image_folder']}, "
                 f"by rank in image {d['false_positives_by_rank_in_image']}"
             )
+    out["inside_image"] = {c: inside_image(sc, rows, label, rank, c) for c in ETHZ_CLASSES}
+    for c, d in out["inside_image"].items():
+        if d["pairs"]:
+            print(f"  {c:10s} {d['pairs']} pairs, median true - best: {d['median_difference']}")
     out["seconds"] = round(time.perf_counter() - t0, 1)
     out["machine"] = machine()
     out["command"] = "python3 benchmarks/ethz_misses.py " + " ".join(sys.argv[1:])
