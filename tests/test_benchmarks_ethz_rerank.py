@@ -16,6 +16,8 @@ sys.path.insert(0, str(BENCH))
 class_norm = pytest.importorskip("ethz_class_norm")
 hard_rows = pytest.importorskip("ethz_hard_rows")
 within = pytest.importorskip("ethz_within_image")
+upright = pytest.importorskip("ethz_upright")
+self_training = pytest.importorskip("ethz_self_training")
 
 CLASSES = ("applelogos", "bottles", "giraffes", "mugs", "swans")
 
@@ -97,6 +99,26 @@ def test_permute_keeps_each_image_scores_in_the_within_order() -> None:
     assert np.allclose(s, g / g.std() + 0.5 * w / w.std())
 
 
+def test_upright_is_the_cosine_of_the_similarity_rotation() -> None:
+    rng = np.random.default_rng(4)
+    model = rng.normal(size=(30, 2))
+    for deg in (0.0, 30.0, 90.0, 180.0, -120.0):
+        t = np.deg2rad(deg)
+        rot = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+        placed = 2.5 * model @ rot.T + [40.0, -7.0] + 0.01 * rng.normal(size=(30, 2))
+        assert upright.upright(model, placed) == pytest.approx(np.cos(t), abs=5e-3)
+    assert upright.upright(model, np.zeros((30, 2))) == 0.0  # no placement, no angle
+
+
+def test_self_training_learns_what_sets_the_top_apart() -> None:
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(200, 3))
+    s0 = x[:, 0] + 0.5 * rng.normal(size=200)  # the shared ranking follows term 0
+    s1 = self_training.adapted(x, s0, 40, 1.0)
+    assert np.corrcoef(s1, x[:, 0])[0, 1] > 0.8
+    assert np.allclose(self_training.combined(s0, s1, 0.0), s0 / s0.std())
+
+
 def _record(name: str) -> dict:
     return json.loads((BENCH / "results" / name).read_text())
 
@@ -135,6 +157,13 @@ def test_committed_records_are_consistent() -> None:
         wi["combinations"]["global"]["loco_overlap_20"]
         == (tp["set_chosen_in_each_fold"]["loco_overlap_20"])
     )
+    up = _record("ethz_upright_pb.json")
+    _means_add_up(up["set_chosen_in_each_fold"])
+    assert up["outline_dif_check"] < 1e-9  # the model samples are the detector's
+    st = _record("ethz_self_training_pb.json")
+    _means_add_up(st["chosen_in_each_fold"])
+    # g = 0 is the shipped ranking: the headline of the template record
+    assert st["by_g"]["0.0"]["loco_overlap_20"] == tp["set_chosen_in_each_fold"]["loco_overlap_20"]
     ms = _record("ethz_misses_pb.json")
     for c in CLASSES:
         d = ms["overlap_20"][c]
