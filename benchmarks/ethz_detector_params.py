@@ -30,7 +30,7 @@ Protocol, written before any of the new runs were made:
 
 Mean DR at 0.4 FPPI under the 20% rule and under PASCAL's 50%. Usage::
 
-    python3 benchmarks/ethz_detector_params.py shipped=ROWS gap_cost=0.6=ROWS ...
+    python3 benchmarks/ethz_detector_params.py shipped@ROWS gap_cost=0.6@ROWS ...
 
 Writes ``benchmarks/results/ethz_detector_params_pb.json`` (or ``--json``).
 """
@@ -79,7 +79,7 @@ def recall_any(sc, rows, thr: float) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", nargs="+", help="NAME=ROWS, the shipped settings first")
+    ap.add_argument("runs", nargs="+", help="NAME@ROWS, the shipped settings first")
     ap.add_argument("--data", default=None)
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
@@ -89,7 +89,7 @@ def main() -> None:
     classes = list(ETHZ_CLASSES)
     runs: dict = {}
     for spec in args.runs:
-        name, path = spec.rsplit("=", 1)
+        name, path = spec.split("@", 1)
         rows = json.loads(Path(path).read_text())
         sc = V._Scorer(root, rows, n_img)
         label = sc.col("iou") >= 0.2

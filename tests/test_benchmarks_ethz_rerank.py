@@ -18,6 +18,7 @@ hard_rows = pytest.importorskip("ethz_hard_rows")
 within = pytest.importorskip("ethz_within_image")
 upright = pytest.importorskip("ethz_upright")
 self_training = pytest.importorskip("ethz_self_training")
+detector_params = pytest.importorskip("ethz_detector_params")
 
 CLASSES = ("applelogos", "bottles", "giraffes", "mugs", "swans")
 
@@ -117,6 +118,24 @@ def test_self_training_learns_what_sets_the_top_apart() -> None:
     s1 = self_training.adapted(x, s0, 40, 1.0)
     assert np.corrcoef(s1, x[:, 0])[0, 1] > 0.8
     assert np.allclose(self_training.combined(s0, s1, 0.0), s0 / s0.std())
+
+
+def test_recall_any_counts_objects_a_kept_box_overlaps() -> None:
+    class Scorer:  # the two attributes recall_any reads
+        cls = np.array(["bottles"] * 3 + ["mugs"])
+        gts = {c: {} for c in CLASSES}
+
+    Scorer.gts["bottles"] = {"a/1": np.array([[0.0, 0, 10, 10], [20, 20, 30, 30]])}
+    Scorer.gts["mugs"] = {"a/1": np.array([[0.0, 0, 10, 10]])}
+    rows = [
+        {"key": "a/1", "bbox": [0, 0, 10, 6]},  # IoU 0.6 with the first bottle
+        {"key": "a/1", "bbox": [20, 20, 40, 40]},  # IoU 0.25 with the second
+        {"key": "b/2", "bbox": [0, 0, 10, 10]},  # another image: counts for nothing
+        {"key": "a/1", "bbox": [50, 50, 60, 60]},  # the mug is missed
+    ]
+    r20 = detector_params.recall_any(Scorer(), rows, 0.2)
+    r50 = detector_params.recall_any(Scorer(), rows, 0.5)
+    assert (r20["bottles"], r50["bottles"], r20["mugs"]) == (1.0, 0.5, 0.0)
 
 
 def _record(name: str) -> dict:
