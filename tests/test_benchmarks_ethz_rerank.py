@@ -185,7 +185,8 @@ def test_committed_records_are_consistent() -> None:
     assert st["by_g"]["0.0"]["loco_overlap_20"] == tp["set_chosen_in_each_fold"]["loco_overlap_20"]
     dp = _record("ethz_detector_params_pb.json")
     _means_add_up(dp["setting_chosen_in_each_fold"])
-    assert dp["runs"]["shipped"]["loco_overlap_20"] == tp["set_chosen_in_each_fold"]["loco_overlap_20"]
+    headline = tp["set_chosen_in_each_fold"]["loco_overlap_20"]
+    assert dp["runs"]["shipped"]["loco_overlap_20"] == headline
     for c, v in dp["setting_chosen_in_each_fold"]["chosen"].items():  # each fold's pick
         got = dp["setting_chosen_in_each_fold"]["loco_overlap_20"][c]
         assert got == dp["runs"][v["setting"]]["loco_overlap_20"][c]
