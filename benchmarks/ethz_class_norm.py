@@ -43,10 +43,7 @@ Writes ``benchmarks/results/ethz_class_norm_<edges>.json`` (or ``--json``).
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -55,14 +52,11 @@ from scipy.stats import rankdata
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
-from ethz_collection_terms import SHIPPED  # noqa: E402
-from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
+from _ethz_rows import RESCORER_TERMS, Rows, finish, held_line, held_record, parser  # noqa: E402
 from ethz_template import _inner_best  # noqa: E402
 
-from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
+from shapetree.detection._ethz_eval import ETHZ_CLASSES  # noqa: E402
 
-RESCORER_TERMS = SHIPPED + TEMPLATE_TERMS
 TRANSFORMS = ("global", "per_model_z", "per_model_rank", "global_and_per_model_z")
 
 
@@ -96,49 +90,30 @@ def chosen_in_each_fold(sc, label, x_of: dict) -> dict:
         l2 = res[name][1]
         chosen[c_out] = {"transform": name, "l2": l2, "inner_mean": round(best, 4)}
         held[c_out] = sc.dr(c_out, V._fit_score(x_of[name], label, sc.cls != c_out, l2))
-    return {
-        "chosen": chosen,
-        "loco_overlap_20": V._with_mean(held, 0),
-        "loco_overlap_50": V._with_mean(held, 1),
-    }
+    return held_record(held, chosen)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
-    ap.add_argument("--data", default=None)
+    ap = parser(__doc__)
     ap.add_argument("--edges", default="pb", choices=("pb", "own"))
-    ap.add_argument("--json", default=None)
     args = ap.parse_args()
-    t0 = time.perf_counter()
-    root = ethz_root(args.data)
-    rows = json.loads(Path(args.rows).read_text())
-    sc = V._Scorer(root, rows, len(_images(root)))
-    label = sc.col("iou") >= 0.2
-    x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
+    r = Rows.read(args.rows, args.data)
+    sc, label = r.sc, r.label
+    x = r.matrix()
     x_of = {n: transform(x, sc.cls, n) for n in TRANSFORMS}
     out: dict = {"protocol": __doc__, "edges": args.edges, "terms": list(RESCORER_TERMS)}
     out["logistic"] = {}
     for n in TRANSFORMS:
         res = V._logistic_nested(sc, x_of[n], label)
         out["logistic"][n] = res
-        h = res["logistic_nested_l2"]
-        print(
-            f"{n:24s} held out {h['loco_overlap_20']['mean']:.4f} / "
-            f"{h['loco_overlap_50']['mean']:.4f} {h['loco_overlap_20']}  in sample "
-            f"{res['logistic_in_sample']['overlap_20']['mean']:.4f}"
-        )
+        ins = res["logistic_in_sample"]["overlap_20"]["mean"]
+        print(f"{held_line(f'{n:24s}', res['logistic_nested_l2'])}  in sample {ins:.4f}")
     out["transform_chosen_in_each_fold"] = ch = chosen_in_each_fold(sc, label, x_of)
     print(
-        f"transform chosen in each fold: {ch['loco_overlap_20']['mean']:.4f} / "
-        f"{ch['loco_overlap_50']['mean']:.4f} {ch['loco_overlap_20']} "
+        f"{held_line('transform chosen in each fold:', ch)} "
         f"{ {c: v['transform'] for c, v in ch['chosen'].items()} }"
     )
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    out["command"] = "python3 benchmarks/ethz_class_norm.py " + " ".join(sys.argv[1:])
-    default = RESULTS / f"ethz_class_norm_{args.edges}.json"
-    write_json(Path(args.json) if args.json else default, out)
+    finish(out, args, r.t0, "ethz_class_norm.py", f"ethz_class_norm_{args.edges}.json")
 
 
 if __name__ == "__main__":

@@ -38,7 +38,6 @@ Writes ``benchmarks/results/ethz_detector_params_pb.json`` (or ``--json``).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -48,14 +47,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
-from ethz_collection_terms import SHIPPED  # noqa: E402
-from ethz_template import CANDIDATES, choose_in_folds  # noqa: E402
-from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
+from _ethz_rows import Rows, finish, held_line, held_record  # noqa: E402
+from ethz_template import choose_in_folds  # noqa: E402
 
-from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, _iou, ethz_root  # noqa: E402
+from shapetree.detection._ethz_eval import ETHZ_CLASSES, _iou  # noqa: E402
 
-RESCORER_TERMS = SHIPPED + TEMPLATE_TERMS
 SHIPPED_L2 = 1000.0
 
 
@@ -84,18 +80,14 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
-    root = ethz_root(args.data)
-    n_img = len(_images(root))
     classes = list(ETHZ_CLASSES)
     runs: dict = {}
     for spec in args.runs:
         name, path = spec.split("@", 1)
-        rows = json.loads(Path(path).read_text())
-        sc = V._Scorer(root, rows, n_img)
-        label = sc.col("iou") >= 0.2
-        x_of = {n: np.stack([sc.col(t) for t in SHIPPED + e], 1) for n, e in CANDIDATES.items()}
-        held, chosen = choose_in_folds(sc, label, x_of)
-        x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
+        r = Rows.read(path, args.data)
+        sc, label = r.sc, r.label
+        held, chosen = choose_in_folds(sc, label, r.candidates())
+        x = r.matrix()
         inner = {
             c_out: {
                 c: sc.dr(c, V._fit_score(x, label, ~np.isin(sc.cls, [c_out, c]), SHIPPED_L2))[0]
@@ -108,20 +100,17 @@ def main() -> None:
             "rows": path,
             "held": held,
             "inner": inner,
-            "record": {
-                "chosen": chosen,
-                "loco_overlap_20": V._with_mean(held, 0),
-                "loco_overlap_50": V._with_mean(held, 1),
-                "recall_any_k_overlap_20": recall_any(sc, rows, 0.2),
-                "recall_any_k_overlap_50": recall_any(sc, rows, 0.5),
+            "record": held_record(held, chosen)
+            | {
+                "recall_any_k_overlap_20": recall_any(sc, r.rows, 0.2),
+                "recall_any_k_overlap_50": recall_any(sc, r.rows, 0.5),
             },
         }
-        r = runs[name]["record"]
+        rec = runs[name]["record"]
         print(
-            f"{name:14s} held out {r['loco_overlap_20']['mean']:.4f} / "
-            f"{r['loco_overlap_50']['mean']:.4f} {r['loco_overlap_20']}  recall_any_k "
-            f"{r['recall_any_k_overlap_20']['mean']:.3f} / "
-            f"{r['recall_any_k_overlap_50']['mean']:.3f}",
+            f"{held_line(f'{name:14s}', rec)}  recall_any_k "
+            f"{rec['recall_any_k_overlap_20']['mean']:.3f} / "
+            f"{rec['recall_any_k_overlap_50']['mean']:.3f}",
             flush=True,
         )
     names = list(runs)
@@ -135,22 +124,13 @@ def main() -> None:
     out: dict = {
         "protocol": __doc__,
         "runs": {n: runs[n]["record"] | {"rows": runs[n]["rows"]} for n in names},
-        "setting_chosen_in_each_fold": {
-            "chosen": chosen,
-            "loco_overlap_20": V._with_mean(held, 0),
-            "loco_overlap_50": V._with_mean(held, 1),
-        },
+        "setting_chosen_in_each_fold": held_record(held, chosen),
     }
-    ch = out["setting_chosen_in_each_fold"]
     print(
-        f"setting chosen in each fold: {ch['loco_overlap_20']['mean']:.4f} / "
-        f"{ch['loco_overlap_50']['mean']:.4f} {ch['loco_overlap_20']} "
+        f"{held_line('setting chosen in each fold:', out['setting_chosen_in_each_fold'])} "
         f"{ {c: v['setting'] for c, v in chosen.items()} }"
     )
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    out["command"] = "python3 benchmarks/ethz_detector_params.py " + " ".join(sys.argv[1:])
-    write_json(Path(args.json) if args.json else RESULTS / "ethz_detector_params_pb.json", out)
+    finish(out, args, t0, "ethz_detector_params.py", "ethz_detector_params_pb.json")
 
 
 if __name__ == "__main__":

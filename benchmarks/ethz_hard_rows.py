@@ -47,10 +47,7 @@ Writes ``benchmarks/results/ethz_hard_rows_<edges>.json`` (or ``--json``).
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -58,15 +55,21 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
+from _ethz_rows import (  # noqa: E402
+    RESCORER_TERMS,
+    Rows,
+    finish,
+    fit_all,
+    held_line,
+    held_record,
+    parser,
+)
 from ethz_collection_terms import SHIPPED  # noqa: E402
 from ethz_template import CANDIDATES  # noqa: E402
-from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
 
 from shapetree.detection import DetectParams  # noqa: E402
-from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
+from shapetree.detection._ethz_eval import ETHZ_CLASSES  # noqa: E402
 
-RESCORER_TERMS = SHIPPED + TEMPLATE_TERMS
 VARIANTS = (
     "all_rows",
     "image_top_1",
@@ -144,11 +147,10 @@ def inner_best(sc, name, x, label, rank, classes) -> tuple[float, float]:
     return best
 
 
-def set_and_variant(sc, label, rank) -> dict:
+def set_and_variant(sc, label, rank, x_of: dict) -> dict:
     """Term set, variant and L2 chosen together inside each fold (ties to the earlier set,
     then the earlier variant), scored on the fifth; and chosen the same way on all five
     classes and fitted on all five: ``fit_all``, the constants to ship."""
-    x_of = {n: np.stack([sc.col(t) for t in SHIPPED + e], 1) for n, e in CANDIDATES.items()}
     combos = [(n, v) for n in CANDIDATES for v in VARIANTS]
     classes = list(ETHZ_CLASSES)
 
@@ -164,51 +166,32 @@ def set_and_variant(sc, label, rank) -> dict:
         chosen[c] = {"set": n, "variant": v, "l2": l2, "inner_mean": round(m, 4)}
         held[c] = sc.dr(c, variant_score(v, x_of[n], label, sc.cls != c, l2, sc.cls, rank))
     n, v, l2, m = choose(classes)
-    x = x_of[n]
     rows = np.ones(len(label), bool)
     if v.startswith("image_top_"):
         rows = rank <= int(v.rsplit("_", 1)[1])
     elif v != "all_rows":
         raise ValueError(f"fit_all of a cascade ({v}) is not a linear form; not shipped")
-    mu, sd = x[rows].mean(0), x[rows].std(0) + 1e-12
-    w = V._logistic((x[rows] - mu) / sd, label[rows].astype(float), l2)
-    ins = {c: sc.dr(c, ((x - mu) / sd) @ w[:-1]) for c in classes}
-    return {
-        "chosen": chosen,
-        "loco_overlap_20": V._with_mean(held, 0),
-        "loco_overlap_50": V._with_mean(held, 1),
+    return held_record(held, chosen) | {
         "fit_all": {
             "set": n,
             "variant": v,
             "terms": list(SHIPPED + CANDIDATES[n]),
             "inner_mean": round(m, 4),
-            "l2": l2,
-            "mean": mu.tolist(),
-            "std": sd.tolist(),
-            "weights": w[:-1].tolist(),
-            "intercept": float(w[-1]),
-            "in_sample_overlap_20": V._with_mean(ins, 0),
-            "in_sample_overlap_50": V._with_mean(ins, 1),
+            **fit_all(sc, x_of[n], label, l2, rows),
         },
     }
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
-    ap.add_argument("--data", default=None)
+    ap = parser(__doc__)
     ap.add_argument("--edges", default="pb", choices=("pb", "own"))
-    ap.add_argument("--json", default=None)
     args = ap.parse_args()
-    t0 = time.perf_counter()
-    root = ethz_root(args.data)
-    rows = json.loads(Path(args.rows).read_text())
-    sc = V._Scorer(root, rows, len(_images(root)))
-    label = sc.col("iou") >= 0.2
-    x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
+    r = Rows.read(args.rows, args.data)
+    sc, label = r.sc, r.label
+    x = r.matrix()
     # the detector's own score: base + context_check * context (the rows keep them apart)
     score = sc.col("base") + DetectParams().context_check * sc.col("context")
-    rank = image_rank(np.array([r["key"] for r in rows]), sc.cls, score)
+    rank = image_rank(np.array([row["key"] for row in r.rows]), sc.cls, score)
     classes = list(ETHZ_CLASSES)
     out: dict = {"protocol": __doc__, "edges": args.edges, "terms": list(RESCORER_TERMS)}
     inner = {
@@ -224,45 +207,28 @@ def main() -> None:
             c: sc.dr(c, variant_score(n, x, label, sc.cls != c, inner[c][n][1], sc.cls, rank))
             for c in classes
         }
-        out["variants"][n] = {
-            "l2_chosen": {c: inner[c][n][1] for c in classes},
-            "loco_overlap_20": V._with_mean(held, 0),
-            "loco_overlap_50": V._with_mean(held, 1),
-        }
-        print(
-            f"{n:12s} held out {V._mean({c: v[0] for c, v in held.items()}):.4f} / "
-            f"{V._mean({c: v[1] for c, v in held.items()}):.4f} "
-            f"{out['variants'][n]['loco_overlap_20']}"
-        )
+        out["variants"][n] = {"l2_chosen": {c: inner[c][n][1] for c in classes}} | held_record(held)
+        print(held_line(f"{n:12s}", out["variants"][n]))
     held, chosen = {}, {}
     for c in classes:
         best = max(v[0] for v in inner[c].values())
         n = next(n for n in VARIANTS if inner[c][n][0] == best)
         chosen[c] = {"variant": n, "l2": inner[c][n][1], "inner_mean": round(best, 4)}
         held[c] = sc.dr(c, variant_score(n, x, label, sc.cls != c, inner[c][n][1], sc.cls, rank))
-    out["variant_chosen_in_each_fold"] = ch = {
-        "chosen": chosen,
-        "loco_overlap_20": V._with_mean(held, 0),
-        "loco_overlap_50": V._with_mean(held, 1),
-    }
+    out["variant_chosen_in_each_fold"] = ch = held_record(held, chosen)
     print(
-        f"variant chosen in each fold: {ch['loco_overlap_20']['mean']:.4f} / "
-        f"{ch['loco_overlap_50']['mean']:.4f} {ch['loco_overlap_20']} "
+        f"{held_line('variant chosen in each fold:', ch)} "
         f"{ {c: v['variant'] for c, v in chosen.items()} }"
     )
-    out["set_and_variant_chosen_in_each_fold"] = sv = set_and_variant(sc, label, rank)
+    sv = set_and_variant(sc, label, rank, r.candidates())
+    out["set_and_variant_chosen_in_each_fold"] = sv
     print(
-        f"set and variant chosen in each fold: {sv['loco_overlap_20']['mean']:.4f} / "
-        f"{sv['loco_overlap_50']['mean']:.4f} {sv['loco_overlap_20']} "
+        f"{held_line('set and variant chosen in each fold:', sv)} "
         f"{ {c: (v['set'], v['variant']) for c, v in sv['chosen'].items()} }; on all five: "
         f"{sv['fit_all']['set']}, {sv['fit_all']['variant']} (l2 {sv['fit_all']['l2']}), "
         f"in sample {sv['fit_all']['in_sample_overlap_20']['mean']:.4f}"
     )
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    out["command"] = "python3 benchmarks/ethz_hard_rows.py " + " ".join(sys.argv[1:])
-    default = RESULTS / f"ethz_hard_rows_{args.edges}.json"
-    write_json(Path(args.json) if args.json else default, out)
+    finish(out, args, r.t0, "ethz_hard_rows.py", f"ethz_hard_rows_{args.edges}.json")
 
 
 if __name__ == "__main__":

@@ -26,10 +26,7 @@ Writes ``benchmarks/results/ethz_misses_pb.json`` (or ``--json``).
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
-import time
 from collections import Counter
 from pathlib import Path
 
@@ -38,27 +35,23 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
-from ethz_collection_terms import SHIPPED  # noqa: E402
+from _ethz_rows import RESCORER_TERMS, Rows, finish, parser  # noqa: E402
 from ethz_hard_rows import image_rank  # noqa: E402
-from ethz_template import CANDIDATES, _inner_best  # noqa: E402
-from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
+from ethz_template import _inner_best  # noqa: E402
 
 from shapetree.detection._ethz_eval import (  # noqa: E402
     ETHZ_CLASSES,
-    _images,
     _iou,
     dr_at_fppi,
     dr_fppi_curve,
-    ethz_root,
 )
 
 FPPI = 0.4
 
 
-def held_out_scores(sc, label) -> tuple[np.ndarray, dict]:
-    """Every row scored by the re-scorer chosen and fitted without its class."""
-    x_of = {n: np.stack([sc.col(t) for t in SHIPPED + e], 1) for n, e in CANDIDATES.items()}
+def held_out_scores(sc, label, x_of: dict) -> tuple[np.ndarray, dict]:
+    """Every row scored by the re-scorer chosen (among the candidate term sets ``x_of``)
+    and fitted without its class."""
     s = np.zeros(len(label))
     chosen = {}
     classes = list(ETHZ_CLASSES)
@@ -120,7 +113,7 @@ def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
 def inside_image(sc, rows, label, rank, cls: str) -> dict:
     """True detections below a false best of their image: term differences to that best."""
     keys = np.array([r["key"] for r in rows])
-    terms = SHIPPED + TEMPLATE_TERMS
+    terms = RESCORER_TERMS
     diffs = []
     for i in np.flatnonzero((sc.cls == cls) & label & (rank > 1)):
         best = np.flatnonzero((sc.cls == cls) & (keys == keys[i]) & (rank == 1))[0]
@@ -142,18 +135,11 @@ def inside_image(sc, rows, label, rank, cls: str) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
-    ap.add_argument("--data", default=None)
-    ap.add_argument("--json", default=None)
-    args = ap.parse_args()
-    t0 = time.perf_counter()
-    root = ethz_root(args.data)
-    rows = json.loads(Path(args.rows).read_text())
-    sc = V._Scorer(root, rows, len(_images(root)))
-    label = sc.col("iou") >= 0.2
-    s, chosen = held_out_scores(sc, label)
-    rank = image_rank(np.array([r["key"] for r in rows]), sc.cls, s)
+    args = parser(__doc__).parse_args()
+    r = Rows.read(args.rows, args.data)
+    rows, sc, label = r.rows, r.sc, r.label
+    s, chosen = held_out_scores(sc, label, r.candidates())
+    rank = image_rank(np.array([row["key"] for row in rows]), sc.cls, s)
     out: dict = {"protocol": __doc__, "held_out_choice": chosen}
     for name, thr in (("overlap_20", 0.2), ("overlap_50", 0.5)):
         out[name] = {c: diagnose(sc, rows, s, rank, c, thr) for c in ETHZ_CLASSES}
@@ -168,10 +154,7 @@ def main() -> None:
     for c, d in out["inside_image"].items():
         if d["pairs"]:
             print(f"  {c:10s} {d['pairs']} pairs, median true - best: {d['median_difference']}")
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    out["command"] = "python3 benchmarks/ethz_misses.py " + " ".join(sys.argv[1:])
-    write_json(Path(args.json) if args.json else RESULTS / "ethz_misses_pb.json", out)
+    finish(out, args, r.t0, "ethz_misses.py", "ethz_misses_pb.json")
 
 
 if __name__ == "__main__":

@@ -35,11 +35,8 @@ Writes ``benchmarks/results/ethz_self_training_pb.json`` (or ``--json``).
 
 from __future__ import annotations
 
-import argparse
 import itertools
-import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -47,14 +44,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
-from ethz_collection_terms import SHIPPED  # noqa: E402
-from ethz_template import CANDIDATES, _inner_best  # noqa: E402
-from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
+from _ethz_rows import RESCORER_TERMS, Rows, finish, held_line, held_record, parser  # noqa: E402
+from ethz_template import _inner_best  # noqa: E402
 
-from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
+from shapetree.detection._ethz_eval import ETHZ_CLASSES  # noqa: E402
 
-RESCORER_TERMS = SHIPPED + TEMPLATE_TERMS
 P_GRID = (20, 40, 60)
 L_GRID = (10.0, 100.0, 1000.0)
 G_GRID = (0.0, 0.25, 0.5, 1.0)
@@ -87,18 +81,11 @@ def class_scores(x, s0_all, rows_c) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
-    ap.add_argument("--data", default=None)
-    ap.add_argument("--json", default=None)
-    args = ap.parse_args()
-    t0 = time.perf_counter()
-    root = ethz_root(args.data)
-    rows = json.loads(Path(args.rows).read_text())
-    sc = V._Scorer(root, rows, len(_images(root)))
-    label = sc.col("iou") >= 0.2
-    x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
-    x_of = {n: np.stack([sc.col(t) for t in SHIPPED + e], 1) for n, e in CANDIDATES.items()}
+    args = parser(__doc__).parse_args()
+    r = Rows.read(args.rows, args.data)
+    sc, label = r.sc, r.label
+    x = r.matrix()
+    x_of = r.candidates()
     classes = list(ETHZ_CLASSES)
     grid = list(itertools.product(P_GRID, L_GRID, G_GRID))
 
@@ -143,27 +130,11 @@ def main() -> None:
         print(f"{c_out}: {chosen[c_out]} -> {held[c_out]}", flush=True)
     out: dict = {"protocol": __doc__, "terms": list(RESCORER_TERMS), "by_g": {}}
     for g in G_GRID:
-        out["by_g"][str(g)] = r = {
-            "loco_overlap_20": V._with_mean(per_g[g], 0),
-            "loco_overlap_50": V._with_mean(per_g[g], 1),
-        }
-        print(
-            f"g = {g:<5} held out {r['loco_overlap_20']['mean']:.4f} / "
-            f"{r['loco_overlap_50']['mean']:.4f} {r['loco_overlap_20']}"
-        )
-    out["chosen_in_each_fold"] = ch = {
-        "chosen": chosen,
-        "loco_overlap_20": V._with_mean(held, 0),
-        "loco_overlap_50": V._with_mean(held, 1),
-    }
-    print(
-        f"chosen in each fold: {ch['loco_overlap_20']['mean']:.4f} / "
-        f"{ch['loco_overlap_50']['mean']:.4f} {ch['loco_overlap_20']}"
-    )
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    out["command"] = "python3 benchmarks/ethz_self_training.py " + " ".join(sys.argv[1:])
-    write_json(Path(args.json) if args.json else RESULTS / "ethz_self_training_pb.json", out)
+        out["by_g"][str(g)] = held_record(per_g[g])
+        print(held_line(f"g = {g:<5}", out["by_g"][str(g)]))
+    out["chosen_in_each_fold"] = ch = held_record(held, chosen)
+    print(held_line("chosen in each fold:", ch))
+    finish(out, args, r.t0, "ethz_self_training.py", "ethz_self_training_pb.json")
 
 
 if __name__ == "__main__":

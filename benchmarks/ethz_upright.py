@@ -37,10 +37,8 @@ Writes ``benchmarks/results/ethz_upright_pb.json`` (or ``--json``).
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -49,11 +47,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_collection_terms as CT  # noqa: E402
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
+from _ethz_rows import Rows, finish, fit_all, held_line, held_record, parser  # noqa: E402
 from ethz_template import CANDIDATES, _inner_best, choose_in_folds  # noqa: E402
 
 from shapetree.detection import load_model  # noqa: E402
-from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
+from shapetree.detection._ethz_eval import ETHZ_CLASSES, ethz_root  # noqa: E402
 from shapetree.geometry import outline_dif  # noqa: E402
 
 SETS = {
@@ -93,70 +91,42 @@ def add_upright(root: Path, rows: list[dict], cache: Path, m: int = 30) -> float
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
+    ap = parser(__doc__)
     ap.add_argument("--detections", required=True, help="the cached detections (eval_ethz.py)")
-    ap.add_argument("--data", default=None)
-    ap.add_argument("--json", default=None)
     args = ap.parse_args()
-    t0 = time.perf_counter()
-    root = ethz_root(args.data)
-    rows = json.loads(Path(args.rows).read_text())
-    worst = add_upright(root, rows, Path(args.detections))
+    r = Rows.read(args.rows, args.data)
+    worst = add_upright(ethz_root(args.data), r.rows, Path(args.detections))
     print(f"outline_dif recomputed from the cached points: largest difference {worst:.2e}")
-    sc = V._Scorer(root, rows, len(_images(root)))
-    label = sc.col("iou") >= 0.2
+    sc, label = r.sc, r.label
     out: dict = {
         "protocol": __doc__,
         "outline_dif_check": worst,
         "auc": CT._aucs(sc, "upright", label),
     }
     print(f"AUC of upright per class: {out['auc']}")
-    x_of = {n: np.stack([sc.col(t) for t in ts], 1) for n, ts in SETS.items()}
-    twelve = "shipped + all four + upright"
-    res = V._logistic_nested(sc, x_of[twelve], label)
+    x_of = {n: r.matrix(ts) for n, ts in SETS.items()}
+    res = V._logistic_nested(sc, x_of["shipped + all four + upright"], label)
     out["twelve_plus_upright"] = res
-    h = res["logistic_nested_l2"]
-    print(
-        f"twelve + upright, L2 chosen in each fold: {h['loco_overlap_20']['mean']:.4f} / "
-        f"{h['loco_overlap_50']['mean']:.4f} {h['loco_overlap_20']}"
-    )
+    print(held_line("twelve + upright, L2 chosen in each fold:", res["logistic_nested_l2"]))
     held, chosen = choose_in_folds(sc, label, x_of)
-    classes = list(ETHZ_CLASSES)
-    scores = {n: _inner_best(sc, x, label, classes) for n, x in x_of.items()}
+    scores = {n: _inner_best(sc, x, label, list(ETHZ_CLASSES)) for n, x in x_of.items()}
     name = max(scores, key=lambda n: scores[n])
-    x, l2 = x_of[name], scores[name][1]
-    mu, sd = x.mean(0), x.std(0) + 1e-12
-    w = V._logistic((x - mu) / sd, label.astype(float), l2)
-    ins = {c: sc.dr(c, ((x - mu) / sd) @ w[:-1]) for c in classes}
-    out["set_chosen_in_each_fold"] = nc = {
-        "chosen": chosen,
-        "loco_overlap_20": V._with_mean(held, 0),
-        "loco_overlap_50": V._with_mean(held, 1),
+    out["set_chosen_in_each_fold"] = nc = held_record(held, chosen) | {
         "fit_all": {
             "set": name,
             "terms": list(SETS[name]),
             "inner_mean": round(scores[name][0], 4),
-            "l2": l2,
-            "mean": mu.tolist(),
-            "std": sd.tolist(),
-            "weights": w[:-1].tolist(),
-            "intercept": float(w[-1]),
-            "in_sample_overlap_20": V._with_mean(ins, 0),
-            "in_sample_overlap_50": V._with_mean(ins, 1),
+            **fit_all(sc, x_of[name], label, scores[name][1]),
         },
     }
+    fa = nc["fit_all"]
     print(
-        f"set chosen in each fold: {nc['loco_overlap_20']['mean']:.4f} / "
-        f"{nc['loco_overlap_50']['mean']:.4f} {nc['loco_overlap_20']} "
-        f"{ {c: v['set'] for c, v in chosen.items()} }; on all five: {name} (l2 {l2}), "
-        f"in sample {nc['fit_all']['in_sample_overlap_20']['mean']:.4f} / "
-        f"{nc['fit_all']['in_sample_overlap_50']['mean']:.4f}"
+        f"{held_line('set chosen in each fold:', nc)} "
+        f"{ {c: v['set'] for c, v in chosen.items()} }; on all five: {name} (l2 {fa['l2']}), "
+        f"in sample {fa['in_sample_overlap_20']['mean']:.4f} / "
+        f"{fa['in_sample_overlap_50']['mean']:.4f}"
     )
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    out["command"] = "python3 benchmarks/ethz_upright.py " + " ".join(sys.argv[1:])
-    write_json(Path(args.json) if args.json else RESULTS / "ethz_upright_pb.json", out)
+    finish(out, args, r.t0, "ethz_upright.py", "ethz_upright_pb.json")
 
 
 if __name__ == "__main__":

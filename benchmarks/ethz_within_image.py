@@ -46,10 +46,7 @@ Writes ``benchmarks/results/ethz_within_image_pb.json`` (or ``--json``).
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -58,14 +55,11 @@ from scipy.optimize import minimize
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
-from ethz_collection_terms import SHIPPED  # noqa: E402
-from ethz_template import CANDIDATES, _inner_best  # noqa: E402
-from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
+from _ethz_rows import RESCORER_TERMS, Rows, finish, held_line, held_record, parser  # noqa: E402
+from ethz_template import _inner_best  # noqa: E402
 
-from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
+from shapetree.detection._ethz_eval import ETHZ_CLASSES  # noqa: E402
 
-RESCORER_TERMS = SHIPPED + TEMPLATE_TERMS
 COMBINATIONS = ("global", "permute", "sum_0.25", "sum_0.5", "sum_1", "sum_2")
 
 
@@ -118,19 +112,12 @@ def combine(name: str, g: np.ndarray, w: np.ndarray, group: np.ndarray, tr: np.n
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
-    ap.add_argument("--data", default=None)
-    ap.add_argument("--json", default=None)
-    args = ap.parse_args()
-    t0 = time.perf_counter()
-    root = ethz_root(args.data)
-    rows = json.loads(Path(args.rows).read_text())
-    sc = V._Scorer(root, rows, len(_images(root)))
-    label = sc.col("iou") >= 0.2
-    x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
-    group = groups_of(np.array([r["key"] for r in rows]), sc.cls)
-    x_of = {n: np.stack([sc.col(t) for t in SHIPPED + e], 1) for n, e in CANDIDATES.items()}
+    args = parser(__doc__).parse_args()
+    r = Rows.read(args.rows, args.data)
+    sc, label = r.sc, r.label
+    x = r.matrix()
+    group = groups_of(np.array([row["key"] for row in r.rows]), sc.cls)
+    x_of = r.candidates()
     classes = list(ETHZ_CLASSES)
     combos = [("global", None)] + [(c, l2) for c in COMBINATIONS[1:] for l2 in V.L2_GRID]
 
@@ -176,28 +163,11 @@ def main() -> None:
         print(f"{c_out}: {outer[c_out]} -> {held[c_out]}", flush=True)
     out: dict = {"protocol": __doc__, "terms": list(RESCORER_TERMS), "combinations": {}}
     for cb in COMBINATIONS:
-        out["combinations"][cb] = {
-            "loco_overlap_20": V._with_mean(fixed[cb], 0),
-            "loco_overlap_50": V._with_mean(fixed[cb], 1),
-        }
-        r = out["combinations"][cb]
-        print(
-            f"{cb:9s} held out {r['loco_overlap_20']['mean']:.4f} / "
-            f"{r['loco_overlap_50']['mean']:.4f} {r['loco_overlap_20']}"
-        )
-    out["chosen_in_each_fold"] = ch = {
-        "chosen": outer,
-        "loco_overlap_20": V._with_mean(held, 0),
-        "loco_overlap_50": V._with_mean(held, 1),
-    }
-    print(
-        f"combination chosen in each fold: {ch['loco_overlap_20']['mean']:.4f} / "
-        f"{ch['loco_overlap_50']['mean']:.4f} {ch['loco_overlap_20']}"
-    )
-    out["seconds"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = machine()
-    out["command"] = "python3 benchmarks/ethz_within_image.py " + " ".join(sys.argv[1:])
-    write_json(Path(args.json) if args.json else RESULTS / "ethz_within_image_pb.json", out)
+        out["combinations"][cb] = held_record(fixed[cb])
+        print(held_line(f"{cb:9s}", out["combinations"][cb]))
+    out["chosen_in_each_fold"] = ch = held_record(held, outer)
+    print(held_line("combination chosen in each fold:", ch))
+    finish(out, args, r.t0, "ethz_within_image.py", "ethz_within_image_pb.json")
 
 
 if __name__ == "__main__":
