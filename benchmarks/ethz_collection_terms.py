@@ -125,12 +125,15 @@ def rows_for(
     init=None,
     init_args: tuple = (),
     extra: tuple[str, ...] = (),
+    params: DetectParams | None = None,
 ) -> list[dict]:
     """Every kept detection of every class with the shipped terms and the new ones.
 
     ``image_fn`` (default :func:`_image`) reads one image's detections in a worker that
     ``init(root, cache, *init_args)`` (default :func:`_init`) set up; the detection keys
-    named in ``extra`` are copied into the rows (another script's terms)."""
+    named in ``extra`` are copied into the rows (another script's terms). ``params``
+    (default ``DetectParams()``) must be those of the run: its ``m`` samples the model
+    that the records' image points belong to."""
     from tqdm import tqdm
 
     per_image: dict = {}
@@ -139,7 +142,7 @@ def rows_for(
     with Pool(workers, initializer=init, initargs=(str(root), str(cache), *init_args)) as pool:
         for key, shape, dets in tqdm(pool.imap(image_fn, imgs), total=len(imgs), unit="img"):
             per_image[key], shapes[key] = dets, shape
-    params = DetectParams()
+    params = DetectParams() if params is None else params
     rows: list[dict] = []
     for cls, (_folder, model_file) in ETHZ_CLASSES.items():
         model = load_model(root / "models" / f"{model_file}.tif", m=params.m).points

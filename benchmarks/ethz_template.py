@@ -40,6 +40,7 @@ import ethz_collection_terms as CT  # noqa: E402
 import ethz_verify as V  # noqa: E402
 from _common import RESULTS, ethz_parser, machine, write_json  # noqa: E402
 
+from shapetree.cli._evaluate import key_value  # noqa: E402
 from shapetree.detection import DetectParams, edge_map, load_edges, load_image, load_model  # noqa: E402
 from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
 from shapetree.detection._template import (  # noqa: E402
@@ -191,6 +192,16 @@ def cross_from(sc_tr, label_tr, x_tr_of: dict, sc_te, x_te_of: dict) -> dict:
 
 def main() -> None:
     ap = ethz_parser(__doc__)
+    ap.add_argument(
+        "--param",
+        "-p",
+        action="append",
+        default=[],
+        type=key_value,
+        metavar="KEY=VALUE",
+        help="a DetectParams field of the run that made --detections, other than its "
+        "default (eval_ethz.py --param; e.g. m=40)",
+    )
     ap.add_argument("--rows", default=None, help="also write every row (JSON) here")
     ap.add_argument("--from-rows", default=None, help="read the rows --rows wrote instead")
     ap.add_argument(
@@ -215,6 +226,7 @@ def main() -> None:
             init=_init,
             init_args=(args.edges,),
             extra=TERMS,
+            params=DetectParams(**dict(args.param)),
         )
     if args.rows:
         Path(args.rows).write_text(json.dumps(rows))
