@@ -72,3 +72,13 @@ def ethz_parser(doc: str | None, edges: bool = True) -> argparse.ArgumentParser:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None)
     return ap
+
+
+def add_param_option(ap: argparse.ArgumentParser, help: str) -> None:
+    """``--param/-p KEY=VALUE`` (repeatable): a DetectParams field other than its default,
+    parsed as the CLI parses it (``shapetree.cli._evaluate.key_value``)."""
+    from shapetree.cli._evaluate import key_value
+
+    ap.add_argument(
+        "--param", "-p", action="append", default=[], type=key_value, metavar="KEY=VALUE", help=help
+    )

@@ -1,9 +1,11 @@
 """What the ETHZ ranking experiments that read ``ethz_template.py --rows`` share.
 
 Each such script (``ethz_class_norm.py``, ``ethz_hard_rows.py``, ``ethz_within_image.py``,
-``ethz_upright.py``, ``ethz_self_training.py``, ``ethz_misses.py``) reads the rows of
-every kept detection, scores rankings of them held out, and writes one JSON record: this
-module holds that frame, so that each script is only its own question.
+``ethz_upright.py``, ``ethz_self_training.py``, ``ethz_misses.py``,
+``ethz_detector_params.py``) reads the rows of every kept detection, scores rankings of
+them held out, and writes one JSON record: this module holds that frame, so that each
+script is only its own question. The held-out choice of a term set and the final fit are
+``ethz_template.best_set`` and ``ethz_template.fit_all``.
 """
 
 from __future__ import annotations
@@ -79,24 +81,6 @@ def held_line(name: str, rec: dict) -> str:
         f"{name} held out {rec['loco_overlap_20']['mean']:.4f} / "
         f"{rec['loco_overlap_50']['mean']:.4f} {rec['loco_overlap_20']}"
     )
-
-
-def fit_all(sc: V._Scorer, x: np.ndarray, label: np.ndarray, l2: float, rows=None) -> dict:
-    """The logistic re-scorer fitted on ``rows`` (default all) of every class, standardised
-    over them, and scored in sample: the constants a script would ship."""
-    rows = np.ones(len(label), bool) if rows is None else rows
-    mu, sd = x[rows].mean(0), x[rows].std(0) + 1e-12
-    w = V._logistic((x[rows] - mu) / sd, label[rows].astype(float), l2)
-    ins = {c: sc.dr(c, ((x - mu) / sd) @ w[:-1]) for c in V.ETHZ_CLASSES}
-    return {
-        "l2": l2,
-        "mean": mu.tolist(),
-        "std": sd.tolist(),
-        "weights": w[:-1].tolist(),
-        "intercept": float(w[-1]),
-        "in_sample_overlap_20": V._with_mean(ins, 0),
-        "in_sample_overlap_50": V._with_mean(ins, 1),
-    }
 
 
 def finish(out: dict, args: argparse.Namespace, t0: float, script: str, default: str) -> None:

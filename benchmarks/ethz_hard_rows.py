@@ -59,13 +59,12 @@ from _ethz_rows import (  # noqa: E402
     RESCORER_TERMS,
     Rows,
     finish,
-    fit_all,
     held_line,
     held_record,
     parser,
 )
 from ethz_collection_terms import SHIPPED  # noqa: E402
-from ethz_template import CANDIDATES  # noqa: E402
+from ethz_template import CANDIDATES, fit_all  # noqa: E402
 
 from shapetree.detection import DetectParams  # noqa: E402
 from shapetree.detection._ethz_eval import ETHZ_CLASSES  # noqa: E402

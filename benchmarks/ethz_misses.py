@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import ethz_verify as V  # noqa: E402
 from _ethz_rows import RESCORER_TERMS, Rows, finish, parser  # noqa: E402
 from ethz_hard_rows import image_rank  # noqa: E402
-from ethz_template import _inner_best  # noqa: E402
+from ethz_template import best_set  # noqa: E402
 
 from shapetree.detection._ethz_eval import (  # noqa: E402
     ETHZ_CLASSES,
@@ -56,12 +56,10 @@ def held_out_scores(sc, label, x_of: dict) -> tuple[np.ndarray, dict]:
     chosen = {}
     classes = list(ETHZ_CLASSES)
     for c in classes:
-        inner = [k for k in classes if k != c]
-        res = {n: _inner_best(sc, x, label, inner) for n, x in x_of.items()}
-        name = max(res, key=lambda n: res[n])
-        chosen[c] = {"set": name, "l2": res[name][1]}
+        name, l2, _ = best_set(sc, label, x_of, [k for k in classes if k != c])
+        chosen[c] = {"set": name, "l2": l2}
         r = sc.cls == c
-        s[r] = V._fit_score(x_of[name], label, sc.cls != c, res[name][1])[r]
+        s[r] = V._fit_score(x_of[name], label, sc.cls != c, l2)[r]
     return s, chosen
 
 

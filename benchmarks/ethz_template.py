@@ -38,9 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_collection_terms as CT  # noqa: E402
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, ethz_parser, machine, write_json  # noqa: E402
+from _common import RESULTS, add_param_option, ethz_parser, machine, write_json  # noqa: E402
 
-from shapetree.cli._evaluate import key_value  # noqa: E402
 from shapetree.detection import DetectParams, edge_map, load_edges, load_image, load_model  # noqa: E402
 from shapetree.detection._ethz_eval import ETHZ_CLASSES, _images, ethz_root  # noqa: E402
 from shapetree.detection._template import (  # noqa: E402
@@ -107,6 +106,32 @@ def _inner_best(sc, x, label, classes) -> tuple[float, float]:
     return best
 
 
+def best_set(sc, label, x_of: dict, classes: list[str]) -> tuple[str, float, float]:
+    """The term set of ``x_of`` with the best inner leave-one-class-out mean over
+    ``classes`` (ties to the larger L2, then the earlier set): ``(name, l2, mean)``."""
+    res = {n: _inner_best(sc, x, label, classes) for n, x in x_of.items()}
+    name = max(res, key=lambda n: res[n])
+    return name, res[name][1], res[name][0]
+
+
+def fit_all(sc, x: np.ndarray, label: np.ndarray, l2: float, rows=None) -> dict:
+    """The logistic re-scorer fitted on ``rows`` (default all) of every class, standardised
+    over them, and scored in sample: the constants a script would ship."""
+    rows = np.ones(len(label), bool) if rows is None else rows
+    mu, sd = x[rows].mean(0), x[rows].std(0) + 1e-12
+    w = V._logistic((x[rows] - mu) / sd, label[rows].astype(float), l2)
+    ins = {c: sc.dr(c, ((x - mu) / sd) @ w[:-1]) for c in ETHZ_CLASSES}
+    return {
+        "l2": l2,
+        "mean": mu.tolist(),
+        "std": sd.tolist(),
+        "weights": w[:-1].tolist(),
+        "intercept": float(w[-1]),
+        "in_sample_overlap_20": V._with_mean(ins, 0),
+        "in_sample_overlap_50": V._with_mean(ins, 1),
+    }
+
+
 def choose_in_folds(sc, label, x_of: dict) -> tuple[dict, dict]:
     """For each class left out, the term set (and L2) with the best inner
     leave-one-class-out mean over the four training classes, fitted on them and scored on
@@ -114,12 +139,9 @@ def choose_in_folds(sc, label, x_of: dict) -> tuple[dict, dict]:
     held, chosen = {}, {}
     classes = list(ETHZ_CLASSES)
     for c_out in classes:
-        inner = [c for c in classes if c != c_out]
-        res = {n: _inner_best(sc, x, label, inner) for n, x in x_of.items()}
-        name = max(res, key=lambda n: res[n])
-        chosen[c_out] = {"set": name, "l2": res[name][1], "inner_mean": round(res[name][0], 4)}
-        x = x_of[name]
-        held[c_out] = sc.dr(c_out, V._fit_score(x, label, sc.cls != c_out, res[name][1]))
+        name, l2, m = best_set(sc, label, x_of, [c for c in classes if c != c_out])
+        chosen[c_out] = {"set": name, "l2": l2, "inner_mean": round(m, 4)}
+        held[c_out] = sc.dr(c_out, V._fit_score(x_of[name], label, sc.cls != c_out, l2))
     return held, chosen
 
 
@@ -136,13 +158,7 @@ def nested_choice(sc, label, x_of: dict) -> dict:
     the four training classes, its L2 with it), scored on the fifth; and the set and L2
     chosen on all five, fitted on all five: the constants to ship."""
     held, chosen = choose_in_folds(sc, label, x_of)
-    classes = list(ETHZ_CLASSES)
-    res = {n: _inner_best(sc, x, label, classes) for n, x in x_of.items()}
-    name = max(res, key=lambda n: res[n])
-    x, l2 = x_of[name], res[name][1]
-    mu, sd = x.mean(0), x.std(0) + 1e-12
-    w = V._logistic((x - mu) / sd, label.astype(float), l2)
-    ins = {c: sc.dr(c, ((x - mu) / sd) @ w[:-1]) for c in classes}
+    name, l2, m = best_set(sc, label, x_of, list(ETHZ_CLASSES))
     return {
         "note": "term set and L2 chosen inside each fold by leave-one-class-out over the "
         "four training classes, scored on the fifth (held out); fit_all: the set and L2 "
@@ -154,14 +170,8 @@ def nested_choice(sc, label, x_of: dict) -> dict:
         "fit_all": {
             "set": name,
             "terms": list(CT.SHIPPED + CANDIDATES[name]),
-            "inner_mean": round(res[name][0], 4),
-            "l2": l2,
-            "mean": mu.tolist(),
-            "std": sd.tolist(),
-            "weights": w[:-1].tolist(),
-            "intercept": float(w[-1]),
-            "in_sample_overlap_20": V._with_mean(ins, 0),
-            "in_sample_overlap_50": V._with_mean(ins, 1),
+            "inner_mean": round(m, 4),
+            **fit_all(sc, x_of[name], label, l2),
         },
     }
 
@@ -173,13 +183,11 @@ def cross_from(sc_tr, label_tr, x_tr_of: dict, sc_te, x_te_of: dict) -> dict:
     held, chosen = {}, {}
     classes = list(ETHZ_CLASSES)
     for c_out in classes:
-        inner = [c for c in classes if c != c_out]
-        res = {n: _inner_best(sc_tr, x, label_tr, inner) for n, x in x_tr_of.items()}
-        name = max(res, key=lambda n: res[n])
-        chosen[c_out] = {"set": name, "l2": res[name][1]}
+        name, l2, _ = best_set(sc_tr, label_tr, x_tr_of, [c for c in classes if c != c_out])
+        chosen[c_out] = {"set": name, "l2": l2}
         x_tr, tr = x_tr_of[name], sc_tr.cls != c_out
         mu, sd = x_tr[tr].mean(0), x_tr[tr].std(0) + 1e-12
-        w = V._logistic((x_tr[tr] - mu) / sd, label_tr[tr].astype(float), res[name][1])
+        w = V._logistic((x_tr[tr] - mu) / sd, label_tr[tr].astype(float), l2)
         held[c_out] = sc_te.dr(c_out, ((x_te_of[name] - mu) / sd) @ w[:-1])
     return {
         "note": "term set and L2 chosen inside each fold on the training run's four "
@@ -192,14 +200,9 @@ def cross_from(sc_tr, label_tr, x_tr_of: dict, sc_te, x_te_of: dict) -> dict:
 
 def main() -> None:
     ap = ethz_parser(__doc__)
-    ap.add_argument(
-        "--param",
-        "-p",
-        action="append",
-        default=[],
-        type=key_value,
-        metavar="KEY=VALUE",
-        help="a DetectParams field of the run that made --detections, other than its "
+    add_param_option(
+        ap,
+        "a DetectParams field of the run that made --detections, other than its "
         "default (eval_ethz.py --param; e.g. m=40)",
     )
     ap.add_argument("--rows", default=None, help="also write every row (JSON) here")

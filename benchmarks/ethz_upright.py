@@ -47,8 +47,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_collection_terms as CT  # noqa: E402
 import ethz_verify as V  # noqa: E402
-from _ethz_rows import Rows, finish, fit_all, held_line, held_record, parser  # noqa: E402
-from ethz_template import CANDIDATES, _inner_best, choose_in_folds  # noqa: E402
+from _ethz_rows import Rows, finish, held_line, held_record, parser  # noqa: E402
+from ethz_template import CANDIDATES, best_set, choose_in_folds, fit_all  # noqa: E402
 
 from shapetree.detection import load_model  # noqa: E402
 from shapetree.detection._ethz_eval import ETHZ_CLASSES, ethz_root  # noqa: E402
@@ -109,14 +109,13 @@ def main() -> None:
     out["twelve_plus_upright"] = res
     print(held_line("twelve + upright, L2 chosen in each fold:", res["logistic_nested_l2"]))
     held, chosen = choose_in_folds(sc, label, x_of)
-    scores = {n: _inner_best(sc, x, label, list(ETHZ_CLASSES)) for n, x in x_of.items()}
-    name = max(scores, key=lambda n: scores[n])
+    name, l2, m = best_set(sc, label, x_of, list(ETHZ_CLASSES))
     out["set_chosen_in_each_fold"] = nc = held_record(held, chosen) | {
         "fit_all": {
             "set": name,
             "terms": list(SETS[name]),
-            "inner_mean": round(scores[name][0], 4),
-            **fit_all(sc, x_of[name], label, scores[name][1]),
+            "inner_mean": round(m, 4),
+            **fit_all(sc, x_of[name], label, l2),
         },
     }
     fa = nc["fit_all"]

@@ -56,7 +56,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
 from _ethz_rows import RESCORER_TERMS, Rows, finish, held_line, held_record, parser  # noqa: E402
-from ethz_template import _inner_best  # noqa: E402
+from ethz_template import best_set  # noqa: E402
 
 from shapetree.detection._ethz_eval import ETHZ_CLASSES  # noqa: E402
 
@@ -138,9 +138,7 @@ def main() -> None:
     held: dict = {}
     for c_out in classes:
         inner = [c for c in classes if c != c_out]
-        res = {n: _inner_best(sc, xx, label, inner) for n, xx in x_of.items()}
-        set_name = max(res, key=lambda n: res[n])
-        set_l2 = res[set_name][1]
+        set_name, set_l2, _ = best_set(sc, label, x_of, inner)
         inner_dr = {k: [] for k in combos}
         for c in inner:
             fs = fold_scores(set_name, set_l2, (sc.cls != c_out) & (sc.cls != c))

@@ -39,9 +39,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import REFERENCE_WORKLOAD, machine, reference_ms  # noqa: E402
+from _common import REFERENCE_WORKLOAD, add_param_option, machine, reference_ms  # noqa: E402
 
-from shapetree.cli._evaluate import key_value  # noqa: E402
 from shapetree.detection import DetectParams, evaluate_ethz  # noqa: E402
 
 
@@ -81,14 +80,9 @@ def main() -> None:
         help="figures (default: results/ for the shipped Pb run, i.e. without --json; "
         "none otherwise, since the figure names are shared)",
     )
-    ap.add_argument(
-        "--param",
-        "-p",
-        action="append",
-        default=[],
-        type=key_value,
-        metavar="KEY=VALUE",
-        help="a DetectParams field other than its default (repeatable), e.g. "
+    add_param_option(
+        ap,
+        "a DetectParams field other than its default (repeatable), e.g. "
         "collection_rescore=False; give --json too, the default names are the shipped runs'",
     )
     ap.add_argument(
