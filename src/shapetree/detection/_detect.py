@@ -77,6 +77,13 @@ class DetectParams:
     nms_iou : float
         A detection is suppressed if its box has IoU above this with a better
         one (0.3).
+    score_pool : int
+        Which matches the suppression keeps. 0 (default): the paper's order, cheapest
+        first, so a box is suppressed by any cheaper one it overlaps, and the ``k`` kept
+        are then re-ordered by their score. ``N > 0``: the ``N`` cheapest complete
+        matches with distinct boxes (IoU at most :data:`POOL_IOU` with a cheaper one
+        in the pool) are scored first, and the suppression runs in score order, so a
+        whole-object match that scores better can suppress a cheaper part of it.
     weak_cost : float
         Edge evidence: a contour of mean edge strength ``s`` matched to a
         model interval of share ``f`` pays ``weak_cost * f * (1 - min(1, s /
@@ -199,6 +206,7 @@ class DetectParams:
     min_coverage: float = 0.3
     min_size: float = 24.0
     nms_iou: float = 0.3
+    score_pool: int = 0
     weak_cost: float = 0.0
     strong_edge: float = 0.3
     size_cost: float = 0.5
@@ -261,6 +269,9 @@ class DetectParams:
                 "(collection_rescore=True, the default) has its own colour weight. Pass "
                 "collection_rescore=False with it"
             )
+        sp = self.score_pool
+        if isinstance(sp, bool) or not isinstance(sp, numbers.Integral) or sp < 0:
+            raise ShapeTreeError(f"DetectParams.score_pool must be an integer >= 0, got {sp!r}")
         lo, hi = self.contour_min_points, self.contour_max_points
         for field_name, v in (("contour_min_points", lo), ("contour_max_points", hi)):
             if isinstance(v, bool) or not isinstance(v, numbers.Integral):
@@ -282,14 +293,16 @@ class DetectParams:
         return self.collection_rescore or self.appearance_check > 0
 
     def as_dict(self, collection: bool = True) -> dict[str, Any]:
-        """All parameters as a JSON-friendly dict (``edge_weights`` only when set).
+        """All parameters as a JSON-friendly dict (``edge_weights`` and ``score_pool``
+        only when set).
 
         ``collection=False`` leaves out the collection stage's fields
         (:data:`COLLECTION_FIELDS`), which never change one image's detections: the
         keys of per-image caches are made from that form."""
         d = dataclasses.asdict(self)
-        if d["edge_weights"] is None:
-            del d["edge_weights"]
+        for name in ("edge_weights", "score_pool"):  # the keys of earlier results stand
+            if not d[name]:
+                del d[name]
         if not collection:
             for name in COLLECTION_FIELDS:
                 del d[name]
@@ -789,10 +802,47 @@ def _select(
     e: NDArray[np.float64],
     k: int,
 ) -> list[Detection]:
-    """Up to ``k`` detections from the complete matches, cheapest first: each
-    reconstructed, dropped if too small or covering too little of the model, suppressed
-    by a kept box; then ranked by their score, with the template check of each box."""
+    """Up to ``k`` detections from the complete matches: each reconstructed, dropped if
+    too small or covering too little of the model, suppressed by a kept box (cheapest
+    first, or in score order with ``score_pool``); then ranked by their score, with the
+    template check of each box."""
     ids, costs = complete_matches(res)
+    shape = e.shape if e.size else None
+    if p.score_pool:
+        pool = _distinct_matches(p, res, ids, costs, mdl, dense, base, p.score_pool, POOL_IOU)
+        pool = [_ranking_score(d, shape, p) for d in pool]
+        pool.sort(key=lambda d: -d.score)
+        kept = _suppress(pool, p.nms_iou, k)
+    else:
+        kept = _distinct_matches(p, res, ids, costs, mdl, dense, base, k, p.nms_iou)
+        kept = [_ranking_score(d, shape, p) for d in kept]
+    if kept and e.size:
+        fields = template_fields(e, p.threshold)
+        tm = template_model(kept[0].model_points)
+        kept = [dataclasses.replace(d, **template_terms(fields, tm, d.bbox)) for d in kept]
+    kept.sort(key=lambda d: -d.score)
+    return kept
+
+
+#: ``score_pool``: matches whose boxes overlap a cheaper one in the pool by more than this
+#: IoU are near-duplicates (the same contours, one piece longer or shorter) and left out
+POOL_IOU = 0.7
+
+
+def _distinct_matches(
+    p: DetectParams,
+    res: Any,
+    ids: NDArray[np.int64],
+    costs: NDArray[np.float64],
+    mdl: DetectionModel,
+    dense: list[NDArray[np.float64]],
+    base: NDArray[np.float64],
+    k: int,
+    iou: float,
+) -> list[Detection]:
+    """Up to ``k`` complete matches, cheapest first, each reconstructed, dropped if too
+    small or covering too little of the model or if its box overlaps a kept one by IoU
+    above ``iou``."""
     kept: list[Detection] = []
     kept_boxes = np.zeros((0, 4))
     # the contour boxes of all complete matches, screened at once: too small, or
@@ -810,19 +860,27 @@ def _select(
         b = np.asarray(det.bbox)
         if max(b[2] - b[0], b[3] - b[1]) < p.min_size:
             continue
-        if len(kept) and np.any(_box_iou(b, kept_boxes) > p.nms_iou):
+        if len(kept) and np.any(_box_iou(b, kept_boxes) > iou):
             continue
         kept.append(det)
         kept_boxes = np.vstack([kept_boxes, b])
         if len(kept) >= k:
             break
-        screened |= _box_iou(b, cand_boxes) > p.nms_iou
-    kept = [_ranking_score(d, e.shape if e.size else None, p) for d in kept]
-    if kept and e.size:
-        fields = template_fields(e, p.threshold)
-        tm = template_model(kept[0].model_points)
-        kept = [dataclasses.replace(d, **template_terms(fields, tm, d.bbox)) for d in kept]
-    kept.sort(key=lambda d: -d.score)
+        screened |= _box_iou(b, cand_boxes) > iou
+    return kept
+
+
+def _suppress(ranked: list[Detection], iou: float, k: int) -> list[Detection]:
+    """Greedy suppression in the given order: up to ``k`` detections, none overlapping an
+    earlier kept one by IoU above ``iou``."""
+    kept: list[Detection] = []
+    for det in ranked:
+        b = np.asarray(det.bbox)
+        if kept and np.any(_box_iou(b, np.array([d.bbox for d in kept])) > iou):
+            continue
+        kept.append(det)
+        if len(kept) >= k:
+            break
     return kept
 
 
