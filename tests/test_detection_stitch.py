@@ -319,3 +319,32 @@ def test_stitch_kernel_agrees_with_reference(
         np.testing.assert_array_equal(getattr(res, name), [e[name] for e in ref], err_msg=name)
     np.testing.assert_allclose(res.cost, [e["cost"] for e in ref], rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(res.box, [e["box"] for e in ref])
+
+
+def test_score_pool_suppresses_in_score_order() -> None:
+    from shapetree.detection import DetectParams
+
+    conts, true_box = _scene(2, removed=[(1.0, 1.6)], n_clutter=20)
+    model = make_model(_shape(MODEL_T), m=24)
+    image = np.zeros((320, 420))
+    for prior in (0.075, 0.3):
+        cost_order = detect(model, image, contours=conts, k=4, frame_prior=prior)
+        score_order = detect(model, image, contours=conts, k=4, frame_prior=prior, score_pool=100)
+        assert len(score_order) == len(cost_order) == 4
+        scores = [d.score for d in score_order]
+        assert scores == sorted(scores, reverse=True)
+        for i, d in enumerate(score_order):  # the suppression still holds
+            for e in score_order[:i]:
+                assert _iou(d.bbox, e.bbox) <= 0.3 + 1e-9
+        # the object first either way, and on this scene every rank scores at least as
+        # well when the score, not the cost, decides which overlapping box survives
+        assert _iou(score_order[0].bbox, true_box) > 0.7
+        assert score_order[0].score == pytest.approx(cost_order[0].score)
+        assert all(a.score >= b.score - 1e-12 for a, b in zip(score_order, cost_order))
+        assert sum(scores) > sum(d.score for d in cost_order)
+    # the default keeps the keys of earlier results; a pool is part of them
+    assert "score_pool" not in DetectParams().as_dict()
+    assert DetectParams(score_pool=30).as_dict()["score_pool"] == 30
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ShapeTreeError, match="score_pool"):
+            DetectParams(score_pool=bad)
