@@ -162,7 +162,7 @@ def test_committed_records_are_consistent() -> None:
     _means_add_up(hr["set_and_variant_chosen_in_each_fold"])
     # the fixed twelve terms with every row is the shipped set's fit: 0.8347 in the
     # template record's "all four" row (the same rows, the same L2 rule)
-    tp = _record("ethz_template_pb.json")
+    tp = _record("ethz_template_pb_cost_order.json")
     assert (
         hr["variants"]["all_rows"]["loco_overlap_20"]
         == (tp["logistic"]["shipped + all four"]["logistic_nested_l2"]["loco_overlap_20"])

@@ -190,7 +190,8 @@ def test_frame_prior_reorders_by_image_share() -> None:
     conts, true_box = _scene(2, removed=[(1.0, 1.6)], n_clutter=20)
     model = make_model(_shape(MODEL_T), m=24)
     image = np.zeros((320, 420))
-    off = {"outline_check": 0.0, "context_check": 0.0}
+    # the paper's cost-order suppression, under which a ranking term only re-orders
+    off = {"outline_check": 0.0, "context_check": 0.0, "score_pool": 0}
     plain = detect(model, image, contours=conts, k=4, frame_prior=0.0, **off)
     assert [d.score for d in plain] == pytest.approx([-d.cost for d in plain])
     w = DetectParams().frame_prior
@@ -328,8 +329,8 @@ def test_score_pool_suppresses_in_score_order() -> None:
     model = make_model(_shape(MODEL_T), m=24)
     image = np.zeros((320, 420))
     for prior in (0.075, 0.3):
-        cost_order = detect(model, image, contours=conts, k=4, frame_prior=prior)
-        score_order = detect(model, image, contours=conts, k=4, frame_prior=prior, score_pool=100)
+        cost_order = detect(model, image, contours=conts, k=4, frame_prior=prior, score_pool=0)
+        score_order = detect(model, image, contours=conts, k=4, frame_prior=prior)
         assert len(score_order) == len(cost_order) == 4
         scores = [d.score for d in score_order]
         assert scores == sorted(scores, reverse=True)
@@ -342,9 +343,7 @@ def test_score_pool_suppresses_in_score_order() -> None:
         assert score_order[0].score == pytest.approx(cost_order[0].score)
         assert all(a.score >= b.score - 1e-12 for a, b in zip(score_order, cost_order))
         assert sum(scores) > sum(d.score for d in cost_order)
-    # the default keeps the keys of earlier results; a pool is part of them
-    assert "score_pool" not in DetectParams().as_dict()
-    assert DetectParams(score_pool=30).as_dict()["score_pool"] == 30
+    assert DetectParams().score_pool == 30  # the default; 0 is the paper's cost order
     for bad in (-1, 1.5, True):
         with pytest.raises(ShapeTreeError, match="score_pool"):
             DetectParams(score_pool=bad)

@@ -3,8 +3,8 @@
 A detection's ranking score (:class:`~shapetree.detection.DetectParams`) is the stitched
 cost with three checks added, and it judges the detection by its own image alone. Where
 one model is searched over several photos, this module ranks all their detections
-together by a fixed linear form in twelve terms of each detection, the **collection
-score**, in the units of the score:
+together by a fixed linear form in the terms of each detection below (nine of the
+twelve weigh), the **collection score**, in the units of the score:
 
 ``collection_score = base + sum_t RESCORER_WEIGHTS[t] * t``
 
@@ -36,16 +36,20 @@ box_density    share of edge pixels inside the box
 The weights are those of a logistic regression (detection overlaps a ground-truth box
 by IoU >= 0.2, or not) on the standardised terms, fitted on every detection of the ETHZ
 Shape Classes run with the Pb edge maps (5 hand-drawn models x 255 images, up to 5 kept
-detections each: 6364). Which template terms join the first eight, and the L2 penalty
-(1000), were chosen by leave-one-class-out over the five classes among eight candidate
-term sets. ``python3 benchmarks/ethz_template.py --edges pb --detections ...`` writes
-them (``set_chosen_in_each_fold`` -> ``fit_all`` in
+detections each, suppressed in score order: ``DetectParams.score_pool`` 30). Which of the
+four template terms join the first eight (here ``template_gain`` alone; ``template``,
+``template_support`` and ``box_density`` are computed and recorded but weigh 0), and the
+L2 penalty (1000), were chosen by leave-one-class-out over the five classes among eight
+candidate term sets. ``python3 benchmarks/ethz_template.py --edges pb --detections ...``
+writes them (``set_chosen_in_each_fold`` -> ``fit_all`` in
 ``benchmarks/results/ethz_template_pb.json``), divided here by their standard deviations
 and scaled so that ``base`` weighs 1 (a ranking is unchanged by a common scale and by the
 intercept). Held out (mean DR at 0.4 FPPI, 20% rule / PASCAL), with the term set and the
-penalty chosen inside each fold on four classes and the fifth scored: 0.8359 / 0.7580 on
-the Pb detections, against 0.8229 / 0.7507 for the eight terms without the template check
-and 0.7675 / 0.7219 for the score alone with its context weight chosen the same way.
+penalty chosen inside each fold on four classes and the fifth scored: 0.8682 / 0.8039 on
+those detections; 0.8621 / 0.7979 with the detector's setting (``score_pool`` among
+seven runs) chosen inside each fold too (``benchmarks/ethz_detector_params.py``), against
+0.8359 / 0.7580 for the cost-order detections the previous weights were fitted on
+(``ethz_template_pb_cost_order.json``).
 
 It is transductive through ``appearance`` (the other photos, never their labels) and
 through ``margin`` / ``lead`` (the other detections of the same photo). A detection's own
@@ -76,17 +80,14 @@ __all__ = ["RESCORER_WEIGHTS", "detection_terms", "rescore_collection"]
 #: the module docstring for where they come from).
 RESCORER_WEIGHTS: Mapping[str, float] = MappingProxyType(
     {
-        "context": 0.7993,
-        "outline_dif": -0.3771,
-        "frame": 0.1604,
-        "coverage": 0.2950,
-        "margin": -0.2136,
-        "lead": 2.5434,
-        "appearance": 1.6707,
-        "template": 0.8949,
-        "template_support": 0.6628,
-        "template_gain": 1.8614,
-        "box_density": -0.8235,
+        "context": 0.4060,
+        "outline_dif": -0.4082,
+        "frame": 0.1085,
+        "coverage": 0.3525,
+        "margin": -0.2414,
+        "lead": 2.2052,
+        "appearance": 1.3358,
+        "template_gain": 1.6067,
     }
 )
 
