@@ -127,13 +127,15 @@ class DetectParams:
         kept detection whose box covers a share ``r`` of the image area scores
         ``frame_prior * log(sqrt(r))`` more (at most 0), so of two equally good matches
         the one that fills more of the picture ranks first, in its image and
-        across images (0.075; 0 turns it off).  It changes neither the
-        stitching nor which detections are kept, only their order.  It encodes
+        across images (0.075; 0 turns it off).  It never changes the stitching;
+        with the suppression in score order (``score_pool``, the default) it also
+        decides which of two overlapping matches is kept, with ``score_pool=0`` only
+        their order (like the two checks beside it).  It encodes
         that photographed objects tend to fill the frame.  It is off where the
         image size is unknown (``contours=`` without an image).  On ETHZ the two
         ranking terms lift the mean DR at 0.4 FPPI from 0.626 (cost alone) to
         0.756; picked on four classes and scored on the fifth, 0.750
-        (``benchmarks/ethz_rescore.py``).
+        (``benchmarks/ethz_rescore.py``, with the cost-order suppression).
     context_check : float
         Verification on the *ranking score* (not on the cost): a kept detection
         scores ``context_check * a`` more, where ``a`` in ``[0, 1]`` is the
@@ -141,10 +143,10 @@ class DetectParams:
         image (:func:`~shapetree.detection.context_agreement`: mean histogram
         intersection of log-polar shape contexts, in the image frame, so an upright
         placement agrees more than one on its side) (0.15; 0 turns it off).  Like
-        the two terms above it only re-orders the kept detections.  The weight is
-        the one that leave-one-class-out selection on ETHZ picks most often, in
-        three of five folds (0.25 standard deviations of the score per standard deviation of
-        ``a``, i.e. 0.15; ``benchmarks/ethz_verify.py``).
+        the two terms above it never changes the stitching (see ``score_pool``).
+        The weight is the one that leave-one-class-out selection on ETHZ picks most
+        often, in three of five folds (0.25 standard deviations of the score per
+        standard deviation of ``a``, i.e. 0.15; ``benchmarks/ethz_verify.py``).
     collection_rescore : bool
         Collection stage, used only where one model is searched over several images
         (:func:`~shapetree.detection.evaluate_ethz`, ``shapetree detect MODEL IMAGES``
@@ -155,8 +157,9 @@ class DetectParams:
         colour agreement with the most confident detections of the other images and the
         upright template check of its box (:attr:`Detection.template`) (True). Its
         weights were fitted on the ETHZ detections with Pb maps; held out (four classes
-        fitted, the fifth scored) it lifts the mean DR at 0.4 FPPI from 0.768 to 0.836
-        with Pb maps (README, detection section). A detection's own ``score`` never
+        fitted, the fifth scored) the mean DR at 0.4 FPPI is 0.868 with it (0.862 with
+        ``score_pool`` chosen per fold too), against 0.768 for the score alone on the
+        earlier cost-order detections (README, detection section). A detection's own ``score`` never
         depends on other images. False: the collection score is
         ``score + appearance_check * g`` (below), the score alone when that is 0.
     appearance_check : float
