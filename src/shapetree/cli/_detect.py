@@ -36,8 +36,10 @@ goes on; the exit status is then 1.
 With two or more images the collection stage ranks all their detections together, by
 the re-scorer's collection score: the score plus fixed weights of the shape-context
 agreement, outline check, frame term, coverage, the detection's margin and lead within its
-image, and the colour agreement of the inside of its outline with the most confident
-detections of the other images (weights fitted on ETHZ with Pb maps; see the README). It
+image, the colour agreement of the inside of its outline with the most confident
+detections of the other images, and the upright template check of its box (weights
+fitted on ETHZ with Pb maps; see the README). Overlapping matches in one image are
+suppressed in score order (--param score_pool=0: cheapest first, the paper's order). It
 is written to DIR/ranking.json (or JSONL_STEM.ranking.json); each image's own record and
 scores do not change. It uses the other photos, never labels. --param
 collection_rescore=False turns it off (or, with --param appearance_check=W, ranks by score
