@@ -213,3 +213,8 @@ def test_adopted_suppression_records_agree() -> None:
     # four folds of the declared choice pick the adopted setting
     picks = [v["setting"] for v in dp["setting_chosen_in_each_fold"]["chosen"].values()]
     assert picks.count("score_pool=30") == 4
+    # the runs on top of it are scored against the same rows: its "shipped" run is that fit
+    on = _record("ethz_detector_params_on_score_pool_pb.json")
+    _means_add_up(on["setting_chosen_in_each_fold"])
+    for rule in ("loco_overlap_20", "loco_overlap_50"):
+        assert on["runs"]["shipped"][rule] == tp["set_chosen_in_each_fold"][rule]
