@@ -37,9 +37,23 @@ its scores were seen:
   and scored on the fifth: ``chosen_in_each_fold``, the headline. Each combination with
   only the L2 chosen inside each fold is reported beside it.
 
+Added on 2026-12-07, after the held-out scores on the ``score_pool`` 30 detections were
+seen (the combination chosen in each fold beat the shipped ranking there): ``fit_all``, the
+constants to ship. The term set and its L2 are chosen on all five classes (``best_set``),
+the combination and the within model's L2 by leave-one-class-out over all five (the same
+rule and ties as inside each fold), then both models are fitted on all five classes. A
+``sum_g`` combination is one linear form in the twelve terms: ``fit_all`` gives its weight
+per unit of each term with ``base`` = 1 (``RESCORER_WEIGHTS``' units) and checks that the
+form ranks the rows as the combination does.
+
+``--score-rows`` (added the same day, for issue 14's item 2): the rows of a run on
+another edge source (the own edge map), each of its classes scored by the combination
+chosen inside the fold and fitted on the four training classes of ``--rows``: held out as
+to class and edge source (``cross_to_other_edges``).
+
 Mean DR at 0.4 FPPI under the 20% rule and under PASCAL's 50%. Usage::
 
-    python3 benchmarks/ethz_within_image.py --rows ROWS_OF_ethz_template.py
+    python3 benchmarks/ethz_within_image.py --rows ROWS_OF_ethz_template.py [--score-rows OWN_ROWS]
 
 Writes ``benchmarks/results/ethz_within_image_pb.json`` (or ``--json``).
 """
@@ -56,7 +70,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
 from _ethz_rows import RESCORER_TERMS, Rows, finish, held_line, held_record, parser  # noqa: E402
-from ethz_template import best_set  # noqa: E402
+from ethz_collection_terms import SHIPPED  # noqa: E402
+from ethz_template import CANDIDATES, best_set  # noqa: E402
 
 from shapetree.detection._ethz_eval import ETHZ_CLASSES  # noqa: E402
 
@@ -111,8 +126,126 @@ def combine(name: str, g: np.ndarray, w: np.ndarray, group: np.ndarray, tr: np.n
     return g / g[tr].std() + gamma * w / (w[tr].std() + 1e-12)
 
 
+def linear_form(
+    terms: tuple[str, ...],
+    set_terms: tuple[str, ...],
+    global_fit: tuple,
+    within_fit: tuple,
+    gamma: float,
+    rows: np.ndarray,
+    x: np.ndarray,
+) -> dict[str, float]:
+    """The ``sum_gamma`` combination as one weight per unit of each of ``terms``, ``base``
+    = 1: ``global_fit`` = (mu, sd, w) of the global fit over ``set_terms``, ``within_fit``
+    the same of the within model over ``terms``, both standardised as fitted; the two
+    scores' standard deviations are taken over ``rows`` (the training rows)."""
+    mu_g, sd_g, w_g = global_fit
+    mu_w, sd_w, w_w = within_fit
+    xg = np.stack([x[:, terms.index(t)] for t in set_terms], 1)
+    g = ((xg - mu_g) / sd_g) @ w_g
+    ws = ((x - mu_w) / sd_w) @ w_w
+    coef = gamma * (w_w / sd_w) / ws[rows].std()
+    for j, t in enumerate(set_terms):
+        coef[terms.index(t)] += (w_g[j] / sd_g[j]) / g[rows].std()
+    b = coef[terms.index("base")]
+    if b <= 0:
+        raise ValueError(f"the combined form weighs base {b:.4g} <= 0")
+    return {t: float(c / b) for t, c in zip(terms, coef, strict=True) if t != "base"}
+
+
+def fit_all_within(sc, label, x, x_of, group, fold_scores, combos, order) -> dict:
+    """The term set, the combination and the within L2 chosen on all five classes, both
+    models fitted on all five: the constants to ship, with their in-sample DR."""
+    classes = list(ETHZ_CLASSES)
+    set_name, set_l2, _ = best_set(sc, label, x_of, classes)
+    inner_dr = {k: [] for k in combos}
+    for c in classes:
+        fs = fold_scores(set_name, set_l2, sc.cls != c)
+        for k in combos:
+            inner_dr[k].append(sc.dr(c, fs[k])[0])
+    inner_mean = {k: float(np.mean(v)) for k, v in inner_dr.items()}
+    best = max(combos, key=lambda k: (inner_mean[k], -order[k[0]], k[1] or 0.0))
+    rows = np.ones(len(label), bool)
+    out = {
+        "set": set_name,
+        "set_l2": set_l2,
+        "combination": best[0],
+        "within_l2": best[1],
+        "inner_mean": round(inner_mean[best], 4),
+        "inner_means": {f"{k[0]} l2={k[1]}": round(v, 4) for k, v in inner_mean.items()},
+    }
+    fs = fold_scores(set_name, set_l2, rows)
+    ins = {c: sc.dr(c, fs[best]) for c in classes}
+    out["in_sample_overlap_20"] = V._with_mean(ins, 0)
+    out["in_sample_overlap_50"] = V._with_mean(ins, 1)
+    if not best[0].startswith("sum_"):
+        return out
+    xg = x_of[set_name]
+    mu_g, sd_g = xg.mean(0), xg.std(0) + 1e-12
+    w_g = V._logistic((xg - mu_g) / sd_g, label.astype(float), set_l2)[:-1]
+    w_w, mu_w, sd_w = fit_within(x, label, group, rows, best[1])
+    set_terms = tuple(SHIPPED) + tuple(CANDIDATES[set_name])
+    gamma = float(best[0].split("_", 1)[1])
+    form = linear_form(
+        tuple(RESCORER_TERMS), set_terms, (mu_g, sd_g, w_g), (mu_w, sd_w, w_w), gamma, rows, x
+    )
+    lin = x[:, RESCORER_TERMS.index("base")] + sum(
+        w * x[:, RESCORER_TERMS.index(t)] for t, w in form.items()
+    )
+    ins_lin = {c: sc.dr(c, lin) for c in classes}
+    xs = (xg - mu_g) / sd_g
+    out["global_fit"] = {
+        "terms": list(set_terms),
+        "mean": mu_g.tolist(),
+        "std": sd_g.tolist(),
+        "weights": w_g.tolist(),
+        "score_std": float((xs @ w_g).std()),
+    }
+    out["within_fit"] = {
+        "terms": list(RESCORER_TERMS),
+        "mean": mu_w.tolist(),
+        "std": sd_w.tolist(),
+        "weights": w_w.tolist(),
+        "score_std": float((((x - mu_w) / sd_w) @ w_w).std()),
+    }
+    out["gamma"] = gamma
+    out["weights_base_1"] = {t: round(w, 4) for t, w in form.items()}
+    out["linear_form_in_sample_overlap_20"] = V._with_mean(ins_lin, 0)
+    out["linear_form_in_sample_overlap_50"] = V._with_mean(ins_lin, 1)
+    return out
+
+
+def transfer(x_set, x, label, group, tr, set_l2: float, combination, within_l2):
+    """Both models fitted on the rows ``tr`` (the global one on ``x_set``); returns a
+    function scoring another run's ``(x_set, x, group)`` by ``combination``, each score
+    in units of its standard deviation over ``tr``."""
+    mu_g, sd_g = x_set[tr].mean(0), x_set[tr].std(0) + 1e-12
+    w_g = V._logistic((x_set[tr] - mu_g) / sd_g, label[tr].astype(float), set_l2)[:-1]
+    g_tr = ((x_set[tr] - mu_g) / sd_g) @ w_g
+    if combination == "global":
+        return lambda xs, _x, _grp: ((xs - mu_g) / sd_g) @ w_g
+    w_w, mu_w, sd_w = fit_within(x, label, group, tr, within_l2)
+    ws_tr = ((x[tr] - mu_w) / sd_w) @ w_w
+
+    def score(xs, xt, grp):
+        g, ws = ((xs - mu_g) / sd_g) @ w_g, ((xt - mu_w) / sd_w) @ w_w
+        if combination == "permute":
+            return combine("permute", g, ws, grp, np.ones(len(g), bool))
+        gamma = float(combination.split("_", 1)[1])
+        return g / g_tr.std() + gamma * ws / (ws_tr.std() + 1e-12)
+
+    return score
+
+
 def main() -> None:
-    args = parser(__doc__).parse_args()
+    ap = parser(__doc__)
+    ap.add_argument(
+        "--score-rows",
+        default=None,
+        help="rows of a run on another edge source: score each of its classes by the "
+        "combination chosen and fitted on --rows' four other classes",
+    )
+    args = ap.parse_args()
     r = Rows.read(args.rows, args.data)
     sc, label = r.sc, r.label
     x = r.matrix()
@@ -160,11 +293,44 @@ def main() -> None:
             fixed[cb][c_out] = sc.dr(c_out, fs[k])
         print(f"{c_out}: {outer[c_out]} -> {held[c_out]}", flush=True)
     out: dict = {"protocol": __doc__, "terms": list(RESCORER_TERMS), "combinations": {}}
+    if args.score_rows:
+        te = Rows.read(args.score_rows, args.data)
+        x_te, x_te_of = te.matrix(), te.candidates()
+        g_te = groups_of(np.array([row["key"] for row in te.rows]), te.sc.cls)
+        cross = {}
+        for c_out in classes:
+            ch = outer[c_out]
+            f = transfer(
+                x_of[ch["set"]],
+                x,
+                label,
+                group,
+                sc.cls != c_out,
+                ch["set_l2"],
+                ch["combination"],
+                ch["within_l2"],
+            )
+            cross[c_out] = te.sc.dr(c_out, f(x_te_of[ch["set"]], x_te, g_te))
+        out["cross_to_other_edges"] = cx = {"score_rows": args.score_rows}
+        cx |= held_record(cross)
+        print(held_line(f"{args.score_rows} held out:", cx))
     for cb in COMBINATIONS:
         out["combinations"][cb] = held_record(fixed[cb])
         print(held_line(f"{cb:9s}", out["combinations"][cb]))
     out["chosen_in_each_fold"] = ch = held_record(held, outer)
     print(held_line("combination chosen in each fold:", ch))
+    out["fit_all"] = fa = fit_all_within(sc, label, x, x_of, group, fold_scores, combos, order)
+    print(
+        f"fit_all: {fa['set']} (L2 {fa['set_l2']}), {fa['combination']} "
+        f"(within L2 {fa['within_l2']}), in sample {fa['in_sample_overlap_20']['mean']:.4f} / "
+        f"{fa['in_sample_overlap_50']['mean']:.4f}"
+    )
+    if "weights_base_1" in fa:
+        print(f"  as one linear form: {fa['weights_base_1']}")
+        print(
+            f"  its in-sample DR {fa['linear_form_in_sample_overlap_20']['mean']:.4f} / "
+            f"{fa['linear_form_in_sample_overlap_50']['mean']:.4f}"
+        )
     finish(out, args, r.t0, "ethz_within_image.py", "ethz_within_image_pb.json")
 
 

@@ -100,6 +100,32 @@ def test_permute_keeps_each_image_scores_in_the_within_order() -> None:
     assert np.allclose(s, g / g.std() + 0.5 * w / w.std())
 
 
+def test_sum_combination_is_one_linear_form_and_transfers() -> None:
+    """``linear_form`` of a ``sum_g`` combination scores every row as ``combine`` does (up
+    to a positive scale and an offset), and ``transfer`` scores the training rows
+    themselves exactly as the combination fitted on them."""
+    rng = np.random.default_rng(7)
+    terms = ("base", "t1", "t2", "t3")
+    group = np.repeat(np.arange(80), 4)
+    x = rng.normal(size=(320, 4))
+    label = x[:, 0] + x[:, 1] + 0.5 * rng.normal(size=320) > 1.0
+    set_terms = ("base", "t1")
+    xs = x[:, :2]
+    tr = np.ones(320, bool)
+    mu_g, sd_g = xs.mean(0), xs.std(0) + 1e-12
+    w_g = within.V._logistic((xs - mu_g) / sd_g, label.astype(float), 10.0)[:-1]
+    w_w, mu_w, sd_w = within.fit_within(x, label, group, tr, 1.0)
+    g, ws = ((xs - mu_g) / sd_g) @ w_g, ((x - mu_w) / sd_w) @ w_w
+    want = within.combine("sum_2", g, ws, group, tr)
+    form = within.linear_form(terms, set_terms, (mu_g, sd_g, w_g), (mu_w, sd_w, w_w), 2.0, tr, x)
+    assert set(form) == {"t1", "t2", "t3"}
+    lin = x[:, 0] + sum(w * x[:, terms.index(t)] for t, w in form.items())
+    a, b = np.polyfit(lin, want, 1)
+    assert a > 0 and np.allclose(a * lin + b, want, atol=1e-6)
+    f = within.transfer(xs, x, label, group, tr, 10.0, "sum_2", 1.0)
+    assert np.allclose(f(xs, x, group), want, atol=1e-6)
+
+
 def test_upright_is_the_cosine_of_the_similarity_rotation() -> None:
     rng = np.random.default_rng(4)
     model = rng.normal(size=(30, 2))
@@ -148,26 +174,35 @@ def _means_add_up(rec: dict) -> None:
         assert row["mean"] == pytest.approx(np.mean([row[c] for c in CLASSES]), abs=1e-4)
 
 
-def test_committed_records_are_consistent() -> None:
-    cn = _record("ethz_class_norm_pb.json")
+#: each set of ranking records and the re-scorer record made from the same rows: the
+#: cost-order detections of the release before ``score_pool``, and the shipped ones
+RECORD_SETS = [
+    ("_pb_cost_order", "ethz_template_pb_cost_order.json"),
+    ("_pb", "ethz_template_pb.json"),
+]
+
+
+@pytest.mark.parametrize(("suffix", "template"), RECORD_SETS)
+def test_committed_records_are_consistent(suffix: str, template: str) -> None:
+    cn = _record(f"ethz_class_norm{suffix}.json")
     for res in cn["logistic"].values():
         _means_add_up(res["logistic_nested_l2"])
     ch = cn["transform_chosen_in_each_fold"]
     _means_add_up(ch)
     assert {v["transform"] for v in ch["chosen"].values()} <= set(class_norm.TRANSFORMS)
-    hr = _record("ethz_hard_rows_pb.json")
+    hr = _record(f"ethz_hard_rows{suffix}.json")
     for res in hr["variants"].values():
         _means_add_up(res)
     _means_add_up(hr["variant_chosen_in_each_fold"])
     _means_add_up(hr["set_and_variant_chosen_in_each_fold"])
-    # the fixed twelve terms with every row is the shipped set's fit: 0.8347 in the
-    # template record's "all four" row (the same rows, the same L2 rule)
-    tp = _record("ethz_template_pb_cost_order.json")
+    # the fixed twelve terms with every row is the shipped set's fit: the template
+    # record's "all four" row (the same rows, the same L2 rule)
+    tp = _record(template)
     assert (
         hr["variants"]["all_rows"]["loco_overlap_20"]
         == (tp["logistic"]["shipped + all four"]["logistic_nested_l2"]["loco_overlap_20"])
     )
-    wi = _record("ethz_within_image_pb.json")
+    wi = _record(f"ethz_within_image{suffix}.json")
     for res in wi["combinations"].values():
         _means_add_up(res)
     _means_add_up(wi["chosen_in_each_fold"])
@@ -176,13 +211,23 @@ def test_committed_records_are_consistent() -> None:
         wi["combinations"]["global"]["loco_overlap_20"]
         == (tp["set_chosen_in_each_fold"]["loco_overlap_20"])
     )
-    up = _record("ethz_upright_pb.json")
-    _means_add_up(up["set_chosen_in_each_fold"])
-    assert up["outline_dif_check"] < 1e-9  # the model samples are the detector's
-    st = _record("ethz_self_training_pb.json")
+    st = _record(f"ethz_self_training{suffix}.json")
     _means_add_up(st["chosen_in_each_fold"])
     # g = 0 is the shipped ranking: the headline of the template record
     assert st["by_g"]["0.0"]["loco_overlap_20"] == tp["set_chosen_in_each_fold"]["loco_overlap_20"]
+    ms = _record(f"ethz_misses{suffix}.json")
+    for c in CLASSES:
+        d = ms["overlap_20"][c]
+        assert d["found"] + sum(d["missed"].values()) == d["objects"]
+        assert d["dr"] == tp["set_chosen_in_each_fold"]["loco_overlap_20"][c]
+
+
+def test_cost_order_only_records_are_consistent() -> None:
+    """The upright check and the detector-setting choice (made on the cost-order rows)."""
+    tp = _record("ethz_template_pb_cost_order.json")
+    up = _record("ethz_upright_pb.json")
+    _means_add_up(up["set_chosen_in_each_fold"])
+    assert up["outline_dif_check"] < 1e-9  # the model samples are the detector's
     dp = _record("ethz_detector_params_pb.json")
     _means_add_up(dp["setting_chosen_in_each_fold"])
     headline = tp["set_chosen_in_each_fold"]["loco_overlap_20"]
@@ -190,11 +235,6 @@ def test_committed_records_are_consistent() -> None:
     for c, v in dp["setting_chosen_in_each_fold"]["chosen"].items():  # each fold's pick
         got = dp["setting_chosen_in_each_fold"]["loco_overlap_20"][c]
         assert got == dp["runs"][v["setting"]]["loco_overlap_20"][c]
-    ms = _record("ethz_misses_pb.json")
-    for c in CLASSES:
-        d = ms["overlap_20"][c]
-        assert d["found"] + sum(d["missed"].values()) == d["objects"]
-        assert d["dr"] == tp["set_chosen_in_each_fold"]["loco_overlap_20"][c]
 
 
 def test_adopted_suppression_records_agree() -> None:
