@@ -88,18 +88,24 @@ def test_weights_reward_agreement_and_penalise_distortion() -> None:
 
 
 def test_weights_are_the_committed_fit() -> None:
-    """The constants are the committed fit of ``benchmarks/ethz_template.py``
-    (``set_chosen_in_each_fold.fit_all``) per unit of each term, scaled so ``base`` weighs
-    1, to the 4 decimals they are written with."""
-    doc = json.loads((RESULTS / "ethz_template_pb.json").read_text())
-    fit = doc["set_chosen_in_each_fold"]["fit_all"]
-    per_unit = np.array(fit["weights"]) / np.array(fit["std"])
-    assert fit["terms"][0] == "base"
-    got = {t: float(w / per_unit[0]) for t, w in zip(fit["terms"], per_unit, strict=True)}
-    assert got.pop("base") == 1.0
-    assert set(got) == set(RESCORER_WEIGHTS)
-    for t, w in got.items():
-        assert RESCORER_WEIGHTS[t] == pytest.approx(w, abs=6e-5), t
+    """The constants are the committed fit of ``benchmarks/ethz_within_image.py``
+    (``fit_all``): the global logistic fit over its term set plus ``gamma`` times the
+    within-image fit over the twelve terms, each divided by its score's standard deviation,
+    per unit of each term, scaled so ``base`` weighs 1, to the 4 decimals they are written
+    with. Recomputed here from the two fits' full-precision constants."""
+    fit = json.loads((RESULTS / "ethz_within_image_pb.json").read_text())["fit_all"]
+    assert fit["combination"] == f"sum_{fit['gamma']:g}"
+    per_unit: dict[str, float] = {}
+    for part, scale in (("global_fit", 1.0), ("within_fit", fit["gamma"])):
+        f = fit[part]
+        for t, w, sd in zip(f["terms"], f["weights"], f["std"], strict=True):
+            per_unit[t] = per_unit.get(t, 0.0) + scale * w / sd / f["score_std"]
+    base = per_unit.pop("base")
+    assert base > 0
+    assert set(per_unit) == set(RESCORER_WEIGHTS)
+    for t, w in per_unit.items():
+        assert RESCORER_WEIGHTS[t] == pytest.approx(w / base, abs=6e-5), t
+        assert fit["weights_base_1"][t] == pytest.approx(w / base, abs=6e-5), t
 
 
 def test_detection_terms_are_the_detector_quantities() -> None:
