@@ -246,10 +246,21 @@ def test_adopted_suppression_records_agree() -> None:
     ej = _record("ethz.json")
     for rule in ("loco_overlap_20", "loco_overlap_50"):
         assert dp["runs"]["score_pool=30"][rule] == tp["set_chosen_in_each_fold"][rule]
-    fit = tp["set_chosen_in_each_fold"]["fit_all"]
     assert ej["params"]["score_pool"] == 30
-    assert ej["overlap_20"]["dr_fppi_0.4"] == fit["in_sample_overlap_20"]
-    assert ej["overlap_50"]["dr_fppi_0.4"] == fit["in_sample_overlap_50"]
+    # the shipped re-scorer is the within-image record's fit_all on the same rows: the
+    # library's full protocol gives that fit's in-sample DR (library against script), and
+    # the global part alone gave the template record's (the previous headline)
+    wi = _record("ethz_within_image_pb.json")
+    assert wi["chosen_in_each_fold"]["chosen"] and wi["fit_all"]["combination"] == "sum_2"
+    assert ej["overlap_20"]["dr_fppi_0.4"] == wi["fit_all"]["in_sample_overlap_20"]
+    assert ej["overlap_50"]["dr_fppi_0.4"] == wi["fit_all"]["in_sample_overlap_50"]
+    fit = tp["set_chosen_in_each_fold"]["fit_all"]
+    prev = ej["other_runs"][0]
+    assert prev["overlap_20"]["dr_fppi_0.4"] == fit["in_sample_overlap_20"]
+    assert prev["overlap_50"]["dr_fppi_0.4"] == fit["in_sample_overlap_50"]
+    # the within record's global combination is the template record's held-out fit
+    for rule in ("loco_overlap_20", "loco_overlap_50"):
+        assert wi["combinations"]["global"][rule] == tp["set_chosen_in_each_fold"][rule]
     # four folds of the declared choice pick the adopted setting
     picks = [v["setting"] for v in dp["setting_chosen_in_each_fold"]["chosen"].values()]
     assert picks.count("score_pool=30") == 4
