@@ -156,10 +156,10 @@ class DetectParams:
         frame term, the coverage, the detection's margin and lead within its image, its
         colour agreement with the most confident detections of the other images and the
         upright template check of its box (:attr:`Detection.template`) (True). Its
-        weights were fitted on the ETHZ detections with Pb maps; held out (four classes
-        fitted, the fifth scored) the mean DR at 0.4 FPPI is 0.868 with it (0.862 with
-        ``score_pool`` chosen per fold too), against 0.768 for the score alone on the
-        earlier cost-order detections (README, detection section). A detection's own ``score`` never
+        weights (a fit across images plus a fit of the choice within each image) were
+        fitted on the ETHZ detections with Pb maps; held out (four classes fitted, the
+        fifth scored) the mean DR at 0.4 FPPI is 0.889 with it, against 0.768 for the
+        score alone on the earlier cost-order detections (README, detection section). A detection's own ``score`` never
         depends on other images. False: the collection score is
         ``score + appearance_check * g`` (below), the score alone when that is 0.
     appearance_check : float
