@@ -126,6 +126,25 @@ def test_sum_combination_is_one_linear_form_and_transfers() -> None:
     assert np.allclose(f(xs, x, group), want, atol=1e-6)
 
 
+def test_relation_terms_of_a_part_inside_a_whole() -> None:
+    """A part box inside a whole box: the whole contains all of the part, the part lies
+    wholly inside the whole; a disjoint box relates to neither; areas against the largest
+    box of the (model, image) group; another model's or image's boxes never count."""
+    rows = [
+        {"key": "i", "bbox": [0, 0, 10, 10]},  # whole
+        {"key": "i", "bbox": [2, 2, 7, 7]},  # part, inside it
+        {"key": "i", "bbox": [20, 20, 25, 30]},  # disjoint
+        {"key": "j", "bbox": [0, 0, 10, 10]},  # another image: alone
+        {"key": "i", "bbox": [0, 0, 10, 10]},  # another model, same image: alone
+    ]
+    cls = np.array(["a", "a", "a", "a", "b"])
+    t = within.relation_terms(rows, cls)
+    assert t[0].tolist() == pytest.approx([1.0, 0.25, 0.0])
+    assert t[1].tolist() == pytest.approx([0.25, 1.0, np.log(0.25)])  # a quarter of the whole
+    assert t[2].tolist() == pytest.approx([0.0, 0.0, np.log(0.5)])
+    assert t[3].tolist() == [0.0, 0.0, 0.0] and t[4].tolist() == [0.0, 0.0, 0.0]
+
+
 def test_upright_is_the_cosine_of_the_similarity_rotation() -> None:
     rng = np.random.default_rng(4)
     model = rng.normal(size=(30, 2))
