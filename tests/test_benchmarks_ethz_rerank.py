@@ -145,6 +145,28 @@ def test_relation_terms_of_a_part_inside_a_whole() -> None:
     assert t[3].tolist() == [0.0, 0.0, 0.0] and t[4].tolist() == [0.0, 0.0, 0.0]
 
 
+def test_pooled_scorer_counts_the_first_run_only() -> None:
+    """``--pool-rows``: the pooled scorer's DR is the first run's alone, whatever the
+    second run's rows and scores are; training masks still see both runs' classes."""
+    from shapetree.detection._ethz_eval import ethz_root
+
+    root = ethz_root()
+    gt = within.V._gt_boxes(root, "Swans", "aal", "swans")[0].tolist()
+    first = [
+        {"cls": "swans", "key": "Swans/aal", "bbox": gt, "iou": 1.0},
+        {"cls": "swans", "key": "Swans/aal", "bbox": [0, 0, 5, 5], "iou": 0.0},
+        {"cls": "mugs", "key": "Swans/aal", "bbox": [0, 0, 5, 5], "iou": 0.0},
+    ]
+    second = [dict(r, bbox=[1, 1, 6, 6], iou=0.0) for r in first]
+    pooled = within.PooledScorer(root, first + second, 255, len(first))
+    alone = within.V._Scorer(root, first, 255)
+    s = np.array([1.0, 0.5, 0.2])
+    for s2 in (np.zeros(3), np.full(3, 9.0)):  # the second run above or below the first
+        assert pooled.dr("swans", np.r_[s, s2]) == alone.dr("swans", s)
+    assert alone.dr("swans", s)[0] > 0
+    assert (pooled.cls == "swans").sum() == 4  # both runs' rows of the class
+
+
 def test_upright_is_the_cosine_of_the_similarity_rotation() -> None:
     rng = np.random.default_rng(4)
     model = rng.normal(size=(30, 2))
