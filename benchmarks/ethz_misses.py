@@ -22,10 +22,18 @@ the image would have to see (``inside_image``). Usage::
     python3 benchmarks/ethz_misses.py --rows ROWS_OF_ethz_template.py
 
 Writes ``benchmarks/results/ethz_misses_pb.json`` (or ``--json``).
+
+``--within RECORD`` (added in session 46, when the within-image re-scorer shipped): rank
+by that record's held-out choice instead (``ethz_within_image.py``'s ``chosen_in_each_fold``:
+for each class the term set, combination and penalties chosen on the other four, both
+models fitted on them), the ranking of the shipped headline. Either way each class's
+misses are also counted by whether their image holds several objects of the class
+(``missed_in_images_with_several``). Writes ``ethz_misses_within_pb.json``.
 """
 
 from __future__ import annotations
 
+import json
 import sys
 from collections import Counter
 from pathlib import Path
@@ -63,6 +71,32 @@ def held_out_scores(sc, label, x_of: dict) -> tuple[np.ndarray, dict]:
     return s, chosen
 
 
+def held_out_within(sc, rows, label, x_of: dict, record: dict) -> tuple[np.ndarray, dict]:
+    """Every row scored by the within-image record's choice for its class, both models
+    fitted without the class (``ethz_within_image.transfer``)."""
+    import ethz_within_image as W
+
+    x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
+    group = W.groups_of(np.array([row["key"] for row in rows]), sc.cls)
+    chosen = record["chosen_in_each_fold"]["chosen"]
+    s = np.zeros(len(label))
+    for c in ETHZ_CLASSES:
+        ch = chosen[c]
+        f = W.transfer(
+            x_of[ch["set"]],
+            x,
+            label,
+            group,
+            sc.cls != c,
+            ch["set_l2"],
+            ch["combination"],
+            ch["within_l2"],
+        )
+        r = sc.cls == c
+        s[r] = f(x_of[ch["set"]], x, group)[r]
+    return s, chosen
+
+
 def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
     """The groups of one class's misses and its false positives above the cut."""
     idx = np.flatnonzero(sc.cls == cls)
@@ -88,12 +122,13 @@ def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
                 continue
         fp_folder[key.split("/")[0]] += 1
         fp_rank[int(rank[idx[j]])] += 1
-    groups = Counter()
+    groups, several = Counter(), 0
     for key, g in gts.items():
         mine = [i for i in idx if rows[i]["key"] == key]
         for b, box in enumerate(g):
             if claimed[key][b]:
                 continue
+            several += len(g) > 1
             over = [_iou(np.asarray(rows[i]["bbox"], float), box[None])[0] for i in mine]
             hits = [rank[i] for i, v in zip(mine, over) if v >= thr]
             groups["none" if not hits else "best" if min(hits) == 1 else "lower"] += 1
@@ -103,6 +138,7 @@ def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
         "found": int(round(cut_dr * n_gt)),
         "dr": round(cut_dr, 4),
         "missed": {k: groups.get(k, 0) for k in ("best", "lower", "none")},
+        "missed_in_images_with_several": several,
         "false_positives_by_image_folder": dict(fp_folder.most_common()),
         "false_positives_by_rank_in_image": dict(sorted(fp_rank.items())),
     }
@@ -133,10 +169,16 @@ def inside_image(sc, rows, label, rank, cls: str) -> dict:
 
 
 def main() -> None:
-    args = parser(__doc__).parse_args()
+    ap = parser(__doc__)
+    ap.add_argument("--within", default=None, help="an ethz_within_image.py record to rank by")
+    args = ap.parse_args()
     r = Rows.read(args.rows, args.data)
     rows, sc, label = r.rows, r.sc, r.label
-    s, chosen = held_out_scores(sc, label, r.candidates())
+    if args.within:
+        record = json.loads(Path(args.within).read_text())
+        s, chosen = held_out_within(sc, rows, label, r.candidates(), record)
+    else:
+        s, chosen = held_out_scores(sc, label, r.candidates())
     rank = image_rank(np.array([row["key"] for row in rows]), sc.cls, s)
     out: dict = {"protocol": __doc__, "held_out_choice": chosen}
     for name, thr in (("overlap_20", 0.2), ("overlap_50", 0.5)):
@@ -144,7 +186,8 @@ def main() -> None:
         print(name)
         for c, d in out[name].items():
             print(
-                f"  {c:10s} DR {d['dr']:.3f} ({d['found']}/{d['objects']}), missed {d['missed']}, "
+                f"  {c:10s} DR {d['dr']:.3f} ({d['found']}/{d['objects']}), missed {d['missed']} "
+                f"({d['missed_in_images_with_several']} in images with several), "
                 f"FP by folder {d['false_positives_by_image_folder']}, "
                 f"by rank in image {d['false_positives_by_rank_in_image']}"
             )
@@ -152,7 +195,8 @@ def main() -> None:
     for c, d in out["inside_image"].items():
         if d["pairs"]:
             print(f"  {c:10s} {d['pairs']} pairs, median true - best: {d['median_difference']}")
-    finish(out, args, r.t0, "ethz_misses.py", "ethz_misses_pb.json")
+    default = "ethz_misses_within_pb.json" if args.within else "ethz_misses_pb.json"
+    finish(out, args, r.t0, "ethz_misses.py", default)
 
 
 if __name__ == "__main__":

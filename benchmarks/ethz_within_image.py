@@ -55,8 +55,9 @@ to class and edge source (``cross_to_other_edges``).
 before any score with it was seen). The held-out misses of the adopted ranking (scratch
 diagnosis with ``ethz_misses.diagnose``) are giraffes lost inside their own image to a
 detection of a part of the animal (the true box holds the best one) and mugs lost as the
-second or later mug of a photo that holds several (13 of the 18 missed mugs). The twelve
-terms describe each detection alone, or its base against the image's best (``margin``,
+second or later mug of a photo that holds several (14 of the 18 missed mugs,
+``ethz_misses.py --within``; 13 when this was declared, a miscount). The twelve terms
+describe each detection alone, or its base against the image's best (``margin``,
 ``lead``); none says how its box sits among the other boxes its image keeps. With
 ``--relations`` the within model sees three more terms, from the kept boxes of the same
 model in the same image (no label): ``contains``, the largest share of another kept box

@@ -299,6 +299,13 @@ def test_adopted_suppression_records_agree() -> None:
     prev = ej["other_runs"][0]
     assert prev["overlap_20"]["dr_fppi_0.4"] == fit["in_sample_overlap_20"]
     assert prev["overlap_50"]["dr_fppi_0.4"] == fit["in_sample_overlap_50"]
+    # the diagnosis of the shipped ranking reproduces its held-out DR per class
+    ms = _record("ethz_misses_within_pb.json")
+    for c in CLASSES:
+        d = ms["overlap_20"][c]
+        assert d["found"] + sum(d["missed"].values()) == d["objects"]
+        assert d["missed_in_images_with_several"] <= sum(d["missed"].values())
+        assert d["dr"] == wi["chosen_in_each_fold"]["loco_overlap_20"][c]
     # the within record's global combination is the template record's held-out fit
     for rule in ("loco_overlap_20", "loco_overlap_50"):
         assert wi["combinations"]["global"][rule] == tp["set_chosen_in_each_fold"][rule]
