@@ -126,7 +126,7 @@ def main() -> None:
         "(chosen_in_each_fold) instead of the global re-scorer; give one per run",
     )
     args = ap.parse_args()
-    within = dict(w.split("=", 1) for w in args.within)
+    within = dict(w.rsplit("=", 1) for w in args.within)  # NAME may hold "="
     t0 = time.perf_counter()
     classes = list(ETHZ_CLASSES)
     runs: dict = {}

@@ -306,6 +306,14 @@ def test_adopted_suppression_records_agree() -> None:
         assert d["found"] + sum(d["missed"].values()) == d["objects"]
         assert d["missed_in_images_with_several"] <= sum(d["missed"].values())
         assert d["dr"] == wi["chosen_in_each_fold"]["loco_overlap_20"][c]
+    # the runs on top of score_pool 30 scored by the within procedure: its shipped run is
+    # the within record, and each fold's pick scores that run's held-out DR
+    dw = _record("ethz_detector_params_within_pb.json")
+    for rule in ("loco_overlap_20", "loco_overlap_50"):
+        assert dw["runs"]["shipped"][rule] == wi["chosen_in_each_fold"][rule]
+    for c, v in dw["setting_chosen_in_each_fold"]["chosen"].items():
+        got = dw["setting_chosen_in_each_fold"]["loco_overlap_20"][c]
+        assert got == dw["runs"][v["setting"]]["loco_overlap_20"][c]
     # the within record's global combination is the template record's held-out fit
     for rule in ("loco_overlap_20", "loco_overlap_50"):
         assert wi["combinations"]["global"][rule] == tp["set_chosen_in_each_fold"][rule]
