@@ -52,6 +52,7 @@ from shapetree.detection._ethz_eval import (  # noqa: E402
     _iou,
     dr_at_fppi,
     dr_fppi_curve,
+    greedy_claims,
 )
 
 FPPI = 0.4
@@ -107,20 +108,10 @@ def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
     # the last position of the curve at that DR within the FPPI limit: the cut
     ok = np.flatnonzero((fppi <= FPPI + 1e-12) & (dr == cut_dr))
     n_top = int(ok[-1]) + 1 if len(ok) else 0
-    order = sorted(range(len(dets)), key=lambda i: -dets[i][1])[:n_top]
-    claimed = {k: np.zeros(len(g), bool) for k, g in gts.items()}
+    order, hit, claimed = greedy_claims(dets, gts, thr, n_top)
     fp_folder, fp_rank = Counter(), Counter()
-    for j in order:  # the same greedy claim as dr_fppi_curve
-        key, _, box = dets[j]
-        g = gts.get(key)
-        if g is not None and len(g):
-            ious = _iou(np.asarray(box, float), g)
-            ious[claimed[key]] = -1.0
-            b = int(np.argmax(ious))
-            if ious[b] >= thr:
-                claimed[key][b] = True
-                continue
-        fp_folder[key.split("/")[0]] += 1
+    for j in np.asarray(order)[~hit]:
+        fp_folder[dets[j][0].split("/")[0]] += 1
         fp_rank[int(rank[idx[j]])] += 1
     groups, several = Counter(), 0
     for key, g in gts.items():

@@ -193,6 +193,26 @@ def test_dr_fppi_curve_counts() -> None:
     assert dr_at_fppi(np.array([0.5]), np.array([1.0]), 0.4) == 0.0
 
 
+def test_greedy_claims_best_first_each_box_once() -> None:
+    """Best score first; each detection claims the unclaimed box it overlaps most; a box is
+    claimed once; ``n`` stops the claim after the n best (the curve's own claim)."""
+    from shapetree.detection._ethz_eval import greedy_claims
+
+    gts = {"a": np.array([[0, 0, 10, 10.0], [8, 0, 18, 10.0]])}
+    dets = [
+        ("a", 0.5, [8, 0, 18, 10]),  # second: box 1 exactly
+        ("a", 0.9, [0, 0, 12, 10]),  # first: more of box 0 than of box 1
+        ("a", 0.1, [8, 0, 18, 10]),  # third: box 1 taken, box 0 below the threshold
+    ]
+    order, hit, claimed = greedy_claims(dets, gts, 0.5)
+    assert order == [1, 0, 2] and hit.tolist() == [True, True, False]
+    assert claimed["a"].tolist() == [True, True]
+    order, hit, claimed = greedy_claims(dets, gts, 0.5, n=1)
+    assert order == [1] and claimed["a"].tolist() == [True, False]
+    fppi, dr, scores = dr_fppi_curve(dets, gts, n_images=1, iou_thr=0.5)
+    assert dr.tolist() == [0.5, 1.0, 1.0] and scores.tolist() == [0.9, 0.5, 0.1]
+
+
 def test_recall_any_is_the_ceiling_of_the_curve() -> None:
     gts = {"a": np.array([[0, 0, 10, 10.0]]), "b": np.array([[0, 0, 10, 10.0], [20, 20, 30, 30.0]])}
     dets = [

@@ -111,6 +111,49 @@ def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return inter / np.maximum(area_a + area_b - inter, 1e-9)
 
 
+def greedy_claims(
+    dets: Sequence[tuple[str, float, Sequence[float]]],
+    gts: dict[str, np.ndarray],
+    iou_thr: float,
+    n: int | None = None,
+) -> tuple[list[int], np.ndarray, dict[str, np.ndarray]]:
+    """The evaluation's greedy claim of ground-truth boxes by detections.
+
+    Detections are taken in decreasing score order (ties in input order); each claims the
+    unclaimed ground-truth box of its image it overlaps most, if that IoU is >= ``iou_thr``.
+
+    Parameters
+    ----------
+    dets, gts, iou_thr
+        As in :func:`dr_fppi_curve`.
+    n : int, optional
+        Only the ``n`` best detections claim (default all).
+
+    Returns
+    -------
+    order : list of int
+        Indices into ``dets``, best first (the first ``n``).
+    hit : ndarray of bool, shape (len(order),)
+        Whether each of them claimed a box (a true detection) or not (a false positive).
+    claimed : dict of image key -> ndarray of bool, shape (g,)
+        The ground-truth boxes claimed once they have all claimed.
+    """
+    order = sorted(range(len(dets)), key=lambda i: -dets[i][1])[:n]
+    claimed = {k: np.zeros(len(g), bool) for k, g in gts.items()}
+    hit = np.zeros(len(order), bool)
+    for pos, i in enumerate(order):
+        key, _, box = dets[i]
+        g = gts.get(key)
+        if g is not None and len(g):
+            ious = _iou(np.asarray(box, float), g)
+            ious[claimed[key]] = -1.0
+            j = int(np.argmax(ious))
+            if ious[j] >= iou_thr:
+                claimed[key][j] = True
+                hit[pos] = True
+    return order, hit, claimed
+
+
 def dr_fppi_curve(
     dets: Sequence[tuple[str, float, Sequence[float]]],
     gts: dict[str, np.ndarray],
@@ -128,7 +171,8 @@ def dr_fppi_curve(
     n_images : int
         Number of images (the FPPI denominator).
     iou_thr : float
-        A detection is correct when its IoU with an unclaimed box is >= this.
+        A detection is correct when its IoU with an unclaimed box is >= this
+        (:func:`greedy_claims`).
 
     Returns
     -------
@@ -136,27 +180,10 @@ def dr_fppi_curve(
         After each detection in decreasing score order.
     """
     n_gt = sum(len(g) for g in gts.values())
-    order = sorted(range(len(dets)), key=lambda i: -dets[i][1])
-    claimed = {k: np.zeros(len(g), bool) for k, g in gts.items()}
-    tp = fp = 0
-    fppi, dr, sc = [], [], []
-    for i in order:
-        key, score, box = dets[i]
-        g = gts.get(key)
-        hit = False
-        if g is not None and len(g):
-            ious = _iou(np.asarray(box, float), g)
-            ious[claimed[key]] = -1.0
-            j = int(np.argmax(ious))
-            if ious[j] >= iou_thr:
-                claimed[key][j] = True
-                hit = True
-        tp += hit
-        fp += not hit
-        fppi.append(fp / n_images)
-        dr.append(tp / max(n_gt, 1))
-        sc.append(score)
-    return np.asarray(fppi), np.asarray(dr), np.asarray(sc)
+    order, hit, _ = greedy_claims(dets, gts, iou_thr)
+    fppi = np.cumsum(~hit) / n_images
+    dr = np.cumsum(hit) / max(n_gt, 1)
+    return fppi, dr, np.array([dets[i][1] for i in order], dtype=float)
 
 
 def recall_any(
