@@ -320,8 +320,12 @@ class _Scorer:
     def col(self, name: str) -> np.ndarray:
         return np.array([r[name] for r in self.rows], float)
 
+    def rows_of(self, cls: str) -> np.ndarray:
+        """The rows whose detections the DR of ``cls`` counts."""
+        return np.flatnonzero(self.cls == cls)
+
     def dr(self, cls: str, s: np.ndarray) -> tuple[float, float]:
-        idx = np.flatnonzero(self.cls == cls)
+        idx = self.rows_of(cls)
         dets = [(self.rows[i]["key"], float(s[i]), self.rows[i]["bbox"]) for i in idx]
         out = []
         for thr in (0.2, 0.5):

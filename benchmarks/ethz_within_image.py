@@ -102,12 +102,7 @@ from _ethz_rows import RESCORER_TERMS, Rows, finish, held_line, held_record, par
 from ethz_collection_terms import SHIPPED  # noqa: E402
 from ethz_template import CANDIDATES, best_set  # noqa: E402
 
-from shapetree.detection._ethz_eval import (  # noqa: E402
-    ETHZ_CLASSES,
-    dr_at_fppi,
-    dr_fppi_curve,
-    ethz_root,
-)
+from shapetree.detection._ethz_eval import ETHZ_CLASSES, ethz_root  # noqa: E402
 
 #: the box relations of ``--relations`` (see the protocol)
 RELATION_TERMS = ("contains", "inside", "log_area_ratio")
@@ -121,14 +116,8 @@ class PooledScorer(V._Scorer):
         super().__init__(root, rows, n_images)
         self.first = np.arange(len(rows)) < n_first
 
-    def dr(self, cls: str, s: np.ndarray) -> tuple[float, float]:
-        idx = np.flatnonzero((self.cls == cls) & self.first)
-        dets = [(self.rows[i]["key"], float(s[i]), self.rows[i]["bbox"]) for i in idx]
-        out = []
-        for thr in (0.2, 0.5):
-            fppi, dr, _ = dr_fppi_curve(dets, self.gts[cls], self.n, thr)
-            out.append(round(dr_at_fppi(fppi, dr, 0.4), 4))
-        return out[0], out[1]
+    def rows_of(self, cls: str) -> np.ndarray:
+        return np.flatnonzero((self.cls == cls) & self.first)
 
 
 def pooled_rows(r: Rows, path: str, data) -> tuple[Rows, np.ndarray]:
