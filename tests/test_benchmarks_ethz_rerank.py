@@ -19,6 +19,7 @@ within = pytest.importorskip("ethz_within_image")
 upright = pytest.importorskip("ethz_upright")
 self_training = pytest.importorskip("ethz_self_training")
 detector_params = pytest.importorskip("ethz_detector_params")
+bootstrap = pytest.importorskip("ethz_bootstrap")
 
 CLASSES = ("applelogos", "bottles", "giraffes", "mugs", "swans")
 
@@ -165,6 +166,27 @@ def test_pooled_scorer_counts_the_first_run_only() -> None:
         assert pooled.dr("swans", np.r_[s, s2]) == alone.dr("swans", s)
     assert alone.dr("swans", s)[0] > 0
     assert (pooled.cls == "swans").sum() == 4  # both runs' rows of the class
+
+
+def test_bootstrap_replicate_repeats_a_photo_whole() -> None:
+    """The photos as they are give the curve's own DR; a photo drawn twice brings its
+    objects and its detections (false positives too) twice."""
+    rows = [
+        {"cls": "swans", "key": "p", "bbox": [0, 0, 10, 10]},  # hits p's swan
+        {"cls": "swans", "key": "q", "bbox": [0, 0, 10, 10]},  # q has no swan: false
+        {"cls": "swans", "key": "r", "bbox": [0, 0, 10, 10]},  # hits r's swan
+    ]
+    gts = {c: {} for c in CLASSES}
+    gts["swans"] = {"p": np.array([[0, 0, 10, 10.0]]), "q": np.zeros((0, 4)),
+                    "r": np.array([[0, 0, 10, 10.0]])}  # fmt: skip
+    cls_rows = {c: {} for c in CLASSES}
+    cls_rows["swans"] = {"p": [0], "q": [1], "r": [2]}
+    s = np.array([0.9, 0.8, 0.1])  # p, then the false q, then r
+    one = bootstrap.replicate_dr(rows, cls_rows, gts, s, ["p", "q", "r"])["swans"]
+    assert one["overlap_20"] == 1.0  # 1 false positive over 3 photos is within 0.4
+    two = bootstrap.replicate_dr(rows, cls_rows, gts, s, ["p", "q", "q", "r"])["swans"]
+    assert two["overlap_20"] == 0.5  # q's false positive twice: 0.5 FPPI before r
+    assert bootstrap.replicate_dr(rows, cls_rows, gts, s, ["p", "p"])["swans"]["overlap_50"] == 1.0
 
 
 def test_upright_is_the_cosine_of_the_similarity_rotation() -> None:
@@ -314,6 +336,13 @@ def test_adopted_suppression_records_agree() -> None:
     for c, v in dw["setting_chosen_in_each_fold"]["chosen"].items():
         got = dw["setting_chosen_in_each_fold"]["loco_overlap_20"][c]
         assert got == dw["runs"][v["setting"]]["loco_overlap_20"][c]
+    # the bootstrap's photos as they are reproduce both held-out figures
+    bs = _record("ethz_bootstrap_pb.json")
+    for rule, loco in (("overlap_20", "loco_overlap_20"), ("overlap_50", "loco_overlap_50")):
+        assert bs[rule]["shipped_as_measured"] == wi["chosen_in_each_fold"][loco]["mean"]
+        assert bs[rule]["global_as_measured"] == tp["set_chosen_in_each_fold"][loco]["mean"]
+        lo, hi = bs[rule]["shipped_interval_95"]
+        assert lo < bs[rule]["shipped_median"] < hi
     # the within record's global combination is the template record's held-out fit
     for rule in ("loco_overlap_20", "loco_overlap_50"):
         assert wi["combinations"]["global"][rule] == tp["set_chosen_in_each_fold"][rule]
