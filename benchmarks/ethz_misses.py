@@ -72,15 +72,27 @@ def held_out_scores(sc, label, x_of: dict) -> tuple[np.ndarray, dict]:
     return s, chosen
 
 
-def held_out_within(sc, rows, label, x_of: dict, record: dict) -> tuple[np.ndarray, dict]:
+def held_out_within(
+    sc, rows, label, x_of: dict, record: dict, target=None
+) -> tuple[np.ndarray, dict]:
     """Every row scored by the within-image record's choice for its class, both models
-    fitted without the class (``ethz_within_image.transfer``)."""
+    fitted without the class (``ethz_within_image.transfer``). ``target`` (an
+    ``_ethz_rows.Rows`` of another run on the same photos, e.g. another edge source):
+    score its rows instead, with the models fitted on these."""
     import ethz_within_image as W
 
-    x = np.stack([sc.col(t) for t in RESCORER_TERMS], 1)
-    group = W.groups_of(np.array([row["key"] for row in rows]), sc.cls)
+    def parts(sc_, rows_):
+        x_ = np.stack([sc_.col(t) for t in RESCORER_TERMS], 1)
+        return x_, W.groups_of(np.array([row["key"] for row in rows_]), sc_.cls)
+
+    x, group = parts(sc, rows)
+    if target is None:
+        sc_t, x_t, group_t, x_of_t = sc, x, group, x_of
+    else:
+        sc_t, x_of_t = target.sc, target.candidates()
+        x_t, group_t = parts(sc_t, target.rows)
     chosen = record["chosen_in_each_fold"]["chosen"]
-    s = np.zeros(len(label))
+    s = np.zeros(len(sc_t.cls))
     for c in ETHZ_CLASSES:
         ch = chosen[c]
         f = W.transfer(
@@ -93,8 +105,8 @@ def held_out_within(sc, rows, label, x_of: dict, record: dict) -> tuple[np.ndarr
             ch["combination"],
             ch["within_l2"],
         )
-        r = sc.cls == c
-        s[r] = f(x_of[ch["set"]], x, group)[r]
+        r = sc_t.cls == c
+        s[r] = f(x_of_t[ch["set"]], x_t, group_t)[r]
     return s, chosen
 
 

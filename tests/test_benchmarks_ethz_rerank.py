@@ -343,6 +343,8 @@ def test_adopted_suppression_records_agree() -> None:
         assert bs[rule]["global_as_measured"] == tp["set_chosen_in_each_fold"][loco]["mean"]
         lo, hi = bs[rule]["shipped_interval_95"]
         assert lo < bs[rule]["shipped_median"] < hi
+        # the own map's run scored as --score-rows scores it (held out as to edge source)
+        assert bs[rule]["other_as_measured"] == wi["cross_to_other_edges"][loco]["mean"]
     # the within record's global combination is the template record's held-out fit
     for rule in ("loco_overlap_20", "loco_overlap_50"):
         assert wi["combinations"]["global"][rule] == tp["set_chosen_in_each_fold"][rule]
