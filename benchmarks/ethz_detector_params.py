@@ -127,6 +127,9 @@ def main() -> None:
     )
     args = ap.parse_args()
     within = dict(w.rsplit("=", 1) for w in args.within)  # NAME may hold "="
+    names = [spec.split("@", 1)[0] for spec in args.runs]
+    if within and set(within) != set(names):
+        ap.error(f"--within needs one NAME=RECORD per run: runs {names}, records {sorted(within)}")
     t0 = time.perf_counter()
     classes = list(ETHZ_CLASSES)
     runs: dict = {}
@@ -168,7 +171,6 @@ def main() -> None:
             f"{rec['recall_any_k_overlap_50']['mean']:.3f}",
             flush=True,
         )
-    names = list(runs)
     held, chosen = {}, {}
     for c_out in classes:
         mean = {n: float(np.mean(list(runs[n]["inner"][c_out].values()))) for n in names}

@@ -28,7 +28,8 @@ by that record's held-out choice instead (``ethz_within_image.py``'s ``chosen_in
 for each class the term set, combination and penalties chosen on the other four, both
 models fitted on them), the ranking of the shipped headline. Either way each class's
 misses are also counted by whether their image holds several objects of the class
-(``missed_in_images_with_several``). Writes ``ethz_misses_within_pb.json``.
+(``missed_in_images_with_several``, and per such image ``missed_by_image_with_several``).
+Writes ``ethz_misses_within_pb.json``.
 """
 
 from __future__ import annotations
@@ -125,13 +126,14 @@ def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
     for j in np.asarray(order)[~hit]:
         fp_folder[dets[j][0].split("/")[0]] += 1
         fp_rank[int(rank[idx[j]])] += 1
-    groups, several = Counter(), 0
+    groups, several = Counter(), Counter()
     for key, g in gts.items():
         mine = [i for i in idx if rows[i]["key"] == key]
         for b, box in enumerate(g):
             if claimed[key][b]:
                 continue
-            several += len(g) > 1
+            if len(g) > 1:
+                several[key] += 1
             over = [_iou(np.asarray(rows[i]["bbox"], float), box[None])[0] for i in mine]
             hits = [rank[i] for i, v in zip(mine, over) if v >= thr]
             groups["none" if not hits else "best" if min(hits) == 1 else "lower"] += 1
@@ -141,7 +143,8 @@ def diagnose(sc, rows, s, rank, cls: str, thr: float) -> dict:
         "found": int(round(cut_dr * n_gt)),
         "dr": round(cut_dr, 4),
         "missed": {k: groups.get(k, 0) for k in ("best", "lower", "none")},
-        "missed_in_images_with_several": several,
+        "missed_in_images_with_several": sum(several.values()),
+        "missed_by_image_with_several": dict(several.most_common()),
         "false_positives_by_image_folder": dict(fp_folder.most_common()),
         "false_positives_by_rank_in_image": dict(sorted(fp_rank.items())),
     }

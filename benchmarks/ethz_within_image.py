@@ -107,6 +107,8 @@ from shapetree.detection._ethz_eval import ETHZ_CLASSES, ethz_root  # noqa: E402
 #: the box relations of ``--relations`` (see the protocol)
 RELATION_TERMS = ("contains", "inside", "log_area_ratio")
 COMBINATIONS = ("global", "permute", "sum_0.25", "sum_0.5", "sum_1", "sum_2")
+#: each combination's place in COMBINATIONS (ties go to the earlier)
+ORDER = {cb: i for i, cb in enumerate(COMBINATIONS)}
 
 
 class PooledScorer(V._Scorer):
@@ -206,46 +208,59 @@ def combine(name: str, g: np.ndarray, w: np.ndarray, group: np.ndarray, tr: np.n
     return g / g[tr].std() + gamma * w / (w[tr].std() + 1e-12)
 
 
-def linear_form(
-    terms: tuple[str, ...],
-    set_terms: tuple[str, ...],
-    global_fit: tuple,
-    within_fit: tuple,
-    gamma: float,
-    rows: np.ndarray,
-    x: np.ndarray,
-) -> dict[str, float]:
-    """The ``sum_gamma`` combination as one weight per unit of each of ``terms``, ``base``
-    = 1: ``global_fit`` = (mu, sd, w) of the global fit over ``set_terms``, ``within_fit``
-    the same of the within model over ``terms``, both standardised as fitted; the two
-    scores' standard deviations are taken over ``rows`` (the training rows)."""
-    mu_g, sd_g, w_g = global_fit
-    mu_w, sd_w, w_w = within_fit
-    xg = np.stack([x[:, terms.index(t)] for t in set_terms], 1)
-    g = ((xg - mu_g) / sd_g) @ w_g
-    ws = ((x - mu_w) / sd_w) @ w_w
-    coef = gamma * (w_w / sd_w) / ws[rows].std()
-    for j, t in enumerate(set_terms):
-        coef[terms.index(t)] += (w_g[j] / sd_g[j]) / g[rows].std()
-    b = coef[terms.index("base")]
+def fit_global(x_set: np.ndarray, label: np.ndarray, tr: np.ndarray, l2: float):
+    """The global logistic fit on the rows ``tr``: ``(mu, sd, w)``, ``w`` without the
+    intercept, on the terms standardised over ``tr``."""
+    mu, sd = x_set[tr].mean(0), x_set[tr].std(0) + 1e-12
+    return mu, sd, V._logistic((x_set[tr] - mu) / sd, label[tr].astype(float), l2)[:-1]
+
+
+def fit_record(terms, mu, sd, w, x_part: np.ndarray) -> dict:
+    """A fit as recorded: its terms, standardisation, weights and the standard deviation
+    of its score over the rows ``x_part`` (what a ``sum_g`` combination divides by)."""
+    return {
+        "terms": list(terms),
+        "mean": mu.tolist(),
+        "std": sd.tolist(),
+        "weights": w.tolist(),
+        "score_std": float((((x_part - mu) / sd) @ w).std()),
+    }
+
+
+def linear_form(global_fit: dict, within_fit: dict, gamma: float) -> dict[str, float]:
+    """The ``sum_gamma`` combination of two recorded fits (:func:`fit_record`) as one
+    weight per unit of each term, ``base`` = 1."""
+    coef: dict[str, float] = {}
+    for f, scale in ((global_fit, 1.0), (within_fit, gamma)):
+        for t, w, sd in zip(f["terms"], f["weights"], f["std"], strict=True):
+            coef[t] = coef.get(t, 0.0) + scale * w / sd / f["score_std"]
+    b = coef.pop("base")
     if b <= 0:
         raise ValueError(f"the combined form weighs base {b:.4g} <= 0")
-    return {t: float(c / b) for t, c in zip(terms, coef, strict=True) if t != "base"}
+    return {t: c / b for t, c in coef.items()}
 
 
-def fit_all_within(sc, label, x, x_of, group, fold_scores, combos, order, terms) -> dict:
-    """The term set, the combination and the within L2 chosen on all five classes, both
-    models fitted on all five: the constants to ship, with their in-sample DR."""
-    classes = list(ETHZ_CLASSES)
-    set_name, set_l2, _ = best_set(sc, label, x_of, classes)
-    inner_dr = {k: [] for k in combos}
+def choose_combination(sc, fold_scores, combos, set_name, set_l2, classes, tr) -> tuple:
+    """The combination and within L2 with the best leave-one-class-out mean over
+    ``classes`` (each fitted on ``tr`` less the class; ties to the earlier combination,
+    then the larger L2): ``(best, {combination: inner mean})``."""
+    inner_dr: dict = {k: [] for k in combos}
     for c in classes:
-        fs = fold_scores(set_name, set_l2, sc.cls != c)
+        fs = fold_scores(set_name, set_l2, tr & (sc.cls != c))
         for k in combos:
             inner_dr[k].append(sc.dr(c, fs[k])[0])
     inner_mean = {k: float(np.mean(v)) for k, v in inner_dr.items()}
-    best = max(combos, key=lambda k: (inner_mean[k], -order[k[0]], k[1] or 0.0))
+    best = max(combos, key=lambda k: (inner_mean[k], -ORDER[k[0]], k[1] or 0.0))
+    return best, inner_mean
+
+
+def fit_all_within(sc, label, x, x_of, group, fold_scores, combos, terms) -> dict:
+    """The term set, the combination and the within L2 chosen on all five classes, both
+    models fitted on all five: the constants to ship, with their in-sample DR."""
+    classes = list(ETHZ_CLASSES)
     rows = np.ones(len(label), bool)
+    set_name, set_l2, _ = best_set(sc, label, x_of, classes)
+    best, inner_mean = choose_combination(sc, fold_scores, combos, set_name, set_l2, classes, rows)
     out = {
         "set": set_name,
         "set_l2": set_l2,
@@ -260,33 +275,15 @@ def fit_all_within(sc, label, x, x_of, group, fold_scores, combos, order, terms)
     out["in_sample_overlap_50"] = V._with_mean(ins, 1)
     if not best[0].startswith("sum_"):
         return out
-    xg = x_of[set_name]
-    mu_g, sd_g = xg.mean(0), xg.std(0) + 1e-12
-    w_g = V._logistic((xg - mu_g) / sd_g, label.astype(float), set_l2)[:-1]
-    w_w, mu_w, sd_w = fit_within(x, label, group, rows, best[1])
     set_terms = tuple(SHIPPED) + tuple(CANDIDATES[set_name])
-    gamma = float(best[0].split("_", 1)[1])
-    form = linear_form(
-        tuple(terms), set_terms, (mu_g, sd_g, w_g), (mu_w, sd_w, w_w), gamma, rows, x
-    )
+    xg = x_of[set_name]
+    w_w, mu_w, sd_w = fit_within(x, label, group, rows, best[1])
+    out["global_fit"] = fit_record(set_terms, *fit_global(xg, label, rows, set_l2), xg)
+    out["within_fit"] = fit_record(terms, mu_w, sd_w, w_w, x)
+    out["gamma"] = gamma = float(best[0].split("_", 1)[1])
+    form = linear_form(out["global_fit"], out["within_fit"], gamma)
     lin = x[:, terms.index("base")] + sum(w * x[:, terms.index(t)] for t, w in form.items())
     ins_lin = {c: sc.dr(c, lin) for c in classes}
-    xs = (xg - mu_g) / sd_g
-    out["global_fit"] = {
-        "terms": list(set_terms),
-        "mean": mu_g.tolist(),
-        "std": sd_g.tolist(),
-        "weights": w_g.tolist(),
-        "score_std": float((xs @ w_g).std()),
-    }
-    out["within_fit"] = {
-        "terms": list(terms),
-        "mean": mu_w.tolist(),
-        "std": sd_w.tolist(),
-        "weights": w_w.tolist(),
-        "score_std": float((((x - mu_w) / sd_w) @ w_w).std()),
-    }
-    out["gamma"] = gamma
     out["weights_base_1"] = {t: round(w, 4) for t, w in form.items()}
     out["linear_form_in_sample_overlap_20"] = V._with_mean(ins_lin, 0)
     out["linear_form_in_sample_overlap_50"] = V._with_mean(ins_lin, 1)
@@ -297,8 +294,7 @@ def transfer(x_set, x, label, group, tr, set_l2: float, combination, within_l2):
     """Both models fitted on the rows ``tr`` (the global one on ``x_set``); returns a
     function scoring another run's ``(x_set, x, group)`` by ``combination``, each score
     in units of its standard deviation over ``tr``."""
-    mu_g, sd_g = x_set[tr].mean(0), x_set[tr].std(0) + 1e-12
-    w_g = V._logistic((x_set[tr] - mu_g) / sd_g, label[tr].astype(float), set_l2)[:-1]
+    mu_g, sd_g, w_g = fit_global(x_set, label, tr, set_l2)
     g_tr = ((x_set[tr] - mu_g) / sd_g) @ w_g
     if combination == "global":
         return lambda xs, _x, _grp: ((xs - mu_g) / sd_g) @ w_g
@@ -362,20 +358,15 @@ def main() -> None:
                 out[(cb, l2)] = combine(cb, g, ws, group, tr)
         return out
 
-    order = {cb: i for i, cb in enumerate(COMBINATIONS)}
     outer: dict = {}
     fixed: dict = {c: {} for c in COMBINATIONS}
     held: dict = {}
     for c_out in classes:
         inner = [c for c in classes if c != c_out]
         set_name, set_l2, _ = best_set(sc, label, x_of, inner)
-        inner_dr = {k: [] for k in combos}
-        for c in inner:
-            fs = fold_scores(set_name, set_l2, (sc.cls != c_out) & (sc.cls != c))
-            for k in combos:
-                inner_dr[k].append(sc.dr(c, fs[k])[0])
-        inner_mean = {k: float(np.mean(v)) for k, v in inner_dr.items()}
-        best = max(combos, key=lambda k: (inner_mean[k], -order[k[0]], k[1] or 0.0))
+        best, inner_mean = choose_combination(
+            sc, fold_scores, combos, set_name, set_l2, inner, sc.cls != c_out
+        )
         fs = fold_scores(set_name, set_l2, sc.cls != c_out)
         held[c_out] = sc.dr(c_out, fs[best])
         outer[c_out] = {
@@ -418,9 +409,7 @@ def main() -> None:
         print(held_line(f"{cb:9s}", out["combinations"][cb]))
     out["chosen_in_each_fold"] = ch = held_record(held, outer)
     print(held_line("combination chosen in each fold:", ch))
-    out["fit_all"] = fa = fit_all_within(
-        sc, label, x, x_of, group, fold_scores, combos, order, terms
-    )
+    out["fit_all"] = fa = fit_all_within(sc, label, x, x_of, group, fold_scores, combos, terms)
     print(
         f"fit_all: {fa['set']} (L2 {fa['set_l2']}), {fa['combination']} "
         f"(within L2 {fa['within_l2']}), in sample {fa['in_sample_overlap_20']['mean']:.4f} / "

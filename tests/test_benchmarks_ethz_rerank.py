@@ -113,12 +113,15 @@ def test_sum_combination_is_one_linear_form_and_transfers() -> None:
     set_terms = ("base", "t1")
     xs = x[:, :2]
     tr = np.ones(320, bool)
-    mu_g, sd_g = xs.mean(0), xs.std(0) + 1e-12
-    w_g = within.V._logistic((xs - mu_g) / sd_g, label.astype(float), 10.0)[:-1]
+    mu_g, sd_g, w_g = within.fit_global(xs, label, tr, 10.0)
     w_w, mu_w, sd_w = within.fit_within(x, label, group, tr, 1.0)
     g, ws = ((xs - mu_g) / sd_g) @ w_g, ((x - mu_w) / sd_w) @ w_w
     want = within.combine("sum_2", g, ws, group, tr)
-    form = within.linear_form(terms, set_terms, (mu_g, sd_g, w_g), (mu_w, sd_w, w_w), 2.0, tr, x)
+    form = within.linear_form(
+        within.fit_record(set_terms, mu_g, sd_g, w_g, xs),
+        within.fit_record(terms, mu_w, sd_w, w_w, x),
+        2.0,
+    )
     assert set(form) == {"t1", "t2", "t3"}
     lin = x[:, 0] + sum(w * x[:, terms.index(t)] for t, w in form.items())
     a, b = np.polyfit(lin, want, 1)
@@ -327,6 +330,9 @@ def test_adopted_suppression_records_agree() -> None:
         d = ms["overlap_20"][c]
         assert d["found"] + sum(d["missed"].values()) == d["objects"]
         assert d["missed_in_images_with_several"] <= sum(d["missed"].values())
+        assert (
+            sum(d["missed_by_image_with_several"].values()) == (d["missed_in_images_with_several"])
+        )
         assert d["dr"] == wi["chosen_in_each_fold"]["loco_overlap_20"][c]
     # the runs on top of score_pool 30 scored by the within procedure: its shipped run is
     # the within record, and each fold's pick scores that run's held-out DR
