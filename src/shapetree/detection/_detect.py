@@ -77,6 +77,13 @@ class DetectParams:
     nms_iou : float
         A detection is suppressed if its box has IoU above this with a better
         one (0.3).
+    nms_nested : float or None
+        With the suppression in score order (``score_pool > 0``) only: a better kept box
+        that lies inside a candidate's box by at least this share of its own area does
+        not suppress the candidate, so a whole object is kept beside a better-scoring part
+        of it (a giraffe's neck inside the whole animal, whose IoU with it is small but
+        often above ``nms_iou``). None (default): off, every overlap above ``nms_iou``
+        suppresses. In ``(0, 1]``. Left out of :meth:`as_dict` when None.
     score_pool : int
         Which matches the suppression keeps. ``N > 0`` (default 30): the ``N`` cheapest
         complete matches with distinct boxes (IoU at most :data:`POOL_IOU` with a
@@ -213,6 +220,7 @@ class DetectParams:
     min_coverage: float = 0.3
     min_size: float = 24.0
     nms_iou: float = 0.3
+    nms_nested: float | None = None
     score_pool: int = 30
     weak_cost: float = 0.0
     strong_edge: float = 0.3
@@ -279,6 +287,22 @@ class DetectParams:
         sp = self.score_pool
         if isinstance(sp, bool) or not isinstance(sp, numbers.Integral) or sp < 0:
             raise ShapeTreeError(f"DetectParams.score_pool must be an integer >= 0, got {sp!r}")
+        nn = self.nms_nested
+        if nn is not None:
+            if (
+                isinstance(nn, bool)
+                or not isinstance(nn, numbers.Real)
+                or not np.isfinite(nn)
+                or not 0 < nn <= 1
+            ):
+                raise ShapeTreeError(
+                    f"DetectParams.nms_nested must be None or a number in (0, 1], got {nn!r}"
+                )
+            if sp == 0:
+                raise ShapeTreeError(
+                    "DetectParams.nms_nested applies to the suppression in score order; "
+                    "it needs score_pool > 0 (got score_pool=0)"
+                )
         lo, hi = self.contour_min_points, self.contour_max_points
         for field_name, v in (("contour_min_points", lo), ("contour_max_points", hi)):
             if isinstance(v, bool) or not isinstance(v, numbers.Integral):
@@ -300,14 +324,16 @@ class DetectParams:
         return self.collection_rescore or self.appearance_check > 0
 
     def as_dict(self, collection: bool = True) -> dict[str, Any]:
-        """All parameters as a JSON-friendly dict (``edge_weights`` only when set).
+        """All parameters as a JSON-friendly dict (``edge_weights`` and ``nms_nested``
+        only when set).
 
         ``collection=False`` leaves out the collection stage's fields
         (:data:`COLLECTION_FIELDS`), which never change one image's detections: the
         keys of per-image caches are made from that form."""
         d = dataclasses.asdict(self)
-        if d["edge_weights"] is None:
-            del d["edge_weights"]
+        for name in ("edge_weights", "nms_nested"):
+            if d[name] is None:
+                del d[name]
         if not collection:
             for name in COLLECTION_FIELDS:
                 del d[name]
@@ -817,7 +843,7 @@ def _select(
         pool = _distinct_matches(p, res, ids, costs, mdl, dense, base, p.score_pool, POOL_IOU)
         pool = [_ranking_score(d, shape, p) for d in pool]
         pool.sort(key=lambda d: -d.score)
-        kept = _suppress(pool, p.nms_iou, k)
+        kept = _suppress(pool, p.nms_iou, k, p.nms_nested)
     else:
         kept = _distinct_matches(p, res, ids, costs, mdl, dense, base, k, p.nms_iou)
         kept = [_ranking_score(d, shape, p) for d in kept]
@@ -875,14 +901,30 @@ def _distinct_matches(
     return kept
 
 
-def _suppress(ranked: list[Detection], iou: float, k: int) -> list[Detection]:
+def _inside_share(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Share of the area of each box of ``b`` (n, 4) that lies inside box ``a`` (4,)."""
+    ix = np.clip(np.minimum(a[2], b[:, 2]) - np.maximum(a[0], b[:, 0]), 0, None)
+    iy = np.clip(np.minimum(a[3], b[:, 3]) - np.maximum(a[1], b[:, 1]), 0, None)
+    area_b = np.clip(b[:, 2] - b[:, 0], 0, None) * np.clip(b[:, 3] - b[:, 1], 0, None)
+    return ix * iy / np.maximum(area_b, 1e-9)
+
+
+def _suppress(
+    ranked: list[Detection], iou: float, k: int, nested: float | None = None
+) -> list[Detection]:
     """Greedy suppression in the given order: up to ``k`` detections, none overlapping an
-    earlier kept one by IoU above ``iou``."""
+    earlier kept one by IoU above ``iou``, except (``nested``) a kept one that lies inside
+    it by at least that share of its area."""
     kept: list[Detection] = []
     for det in ranked:
         b = np.asarray(det.bbox)
-        if kept and np.any(_box_iou(b, np.array([d.bbox for d in kept])) > iou):
-            continue
+        if kept:
+            boxes = np.array([d.bbox for d in kept])
+            over = _box_iou(b, boxes) > iou
+            if nested is not None:
+                over &= _inside_share(b, boxes) < nested
+            if np.any(over):
+                continue
         kept.append(det)
         if len(kept) >= k:
             break
