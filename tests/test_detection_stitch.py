@@ -347,3 +347,45 @@ def test_score_pool_suppresses_in_score_order() -> None:
     for bad in (-1, 1.5, True):
         with pytest.raises(ShapeTreeError, match="score_pool"):
             DetectParams(score_pool=bad)
+
+
+def _boxed(score: float, bbox: tuple[float, float, float, float]) -> Detection:
+    pts = np.zeros((4, 2))
+    return Detection(
+        cost=-score,
+        score=score,
+        bbox=bbox,
+        model_points=pts,
+        image_points=pts,
+        matched=np.ones(4, bool),
+        gaps=[],
+        coverage=1.0,
+    )
+
+
+def test_nms_nested_keeps_a_whole_beside_its_better_part() -> None:
+    from shapetree.detection import DetectParams
+    from shapetree.detection._detect import _suppress
+
+    neck = _boxed(2.0, (40.0, 0.0, 60.0, 50.0))  # 1000 px2, wholly inside the animal
+    whole = _boxed(1.0, (0.0, 0.0, 60.0, 50.0))  # 3000 px2: IoU with the neck 1/3 > 0.3
+    shifted = _boxed(0.5, (50.0, 0.0, 70.0, 50.0))  # IoU 1/3 with the neck, half of it inside
+    elsewhere = _boxed(0.2, (200.0, 200.0, 240.0, 260.0))
+    ranked = [neck, whole, shifted, elsewhere]
+    assert _suppress(ranked, 0.3, 5) == [neck, elsewhere]
+    # the neck lies wholly inside the whole box: it no longer suppresses it; the shifted
+    # box holds only half of the neck and is still suppressed at 0.8, kept at 0.5 (its
+    # IoU with the whole box, 1/7, is below 0.3)
+    assert _suppress(ranked, 0.3, 5, nested=0.8) == [neck, whole, elsewhere]
+    assert _suppress(ranked, 0.3, 5, nested=0.5) == [neck, whole, shifted, elsewhere]
+    # a box inside a kept whole is still suppressed by it (only the container is spared)
+    assert _suppress([whole, neck], 0.3, 5, nested=0.8) == [whole]
+    assert _suppress(ranked, 0.3, 2, nested=0.8) == [neck, whole]
+    assert DetectParams().nms_nested is None  # off by default, and left out of the keys
+    assert "nms_nested" not in DetectParams().as_dict()
+    assert DetectParams(nms_nested=0.8).as_dict()["nms_nested"] == 0.8
+    for bad in (0, -0.1, 1.5, float("nan"), True, "0.8"):
+        with pytest.raises(ShapeTreeError, match="nms_nested"):
+            DetectParams(nms_nested=bad)
+    with pytest.raises(ShapeTreeError, match="score_pool"):
+        DetectParams(nms_nested=0.8, score_pool=0)
