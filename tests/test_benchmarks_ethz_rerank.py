@@ -362,3 +362,32 @@ def test_adopted_suppression_records_agree() -> None:
     _means_add_up(on["setting_chosen_in_each_fold"])
     for rule in ("loco_overlap_20", "loco_overlap_50"):
         assert on["runs"]["shipped"][rule] == tp["set_chosen_in_each_fold"][rule]
+
+
+def test_turned_context_pieces_and_record() -> None:
+    turned_context = pytest.importorskip("ethz_turned_context")
+    from shapetree.detection import context_agreement
+
+    t = np.linspace(0, 2 * np.pi, 30, endpoint=False)
+    model = np.c_[np.cos(t) + 0.6 * (np.cos(t) > 0.5), 0.5 * np.sin(t)] * 40 + 100
+    # four quarter turns are the identity, and a turn keeps the centroid
+    back = model
+    for _ in range(4):
+        back = turned_context.turned(back, 1)
+    np.testing.assert_allclose(back, model, atol=1e-9)
+    np.testing.assert_allclose(turned_context.turned(model, 1).mean(0), model.mean(0))
+    # a placement on its side agrees less as placed, fully when turned back by 270
+    side = turned_context.turned(model, 1)
+    as_placed = context_agreement(model, side)
+    assert context_agreement(model, turned_context.turned(side, 3)) == pytest.approx(1.0, abs=0.01)
+    assert as_placed < 0.5
+    assert turned_context.auc(np.array([3.0, 2, 1, 0]), np.array([1, 1, 0, 0], bool)) == 1.0
+    # the committed record (the shipped Pb rows): its shares and turns are consistent
+    rec = _record("ethz_turned_context_pb.json")
+    for c in CLASSES:
+        d = rec["per_class"][c]
+        assert d["right_low_turned_context"] <= d["right_low_context"]  # the best of four
+        n_low = sum(d["best_turn_of_right_low"].values())
+        assert n_low == round(d["right_low_context"] * d["right"])
+    mugs = rec["per_class"]["mugs"]["best_turn_of_right_low"]
+    assert mugs.get("90", 0) + mugs.get("270", 0) >= 10  # a quarter turn (the README's 13)
