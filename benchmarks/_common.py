@@ -59,13 +59,18 @@ def write_json(path: Path, data: dict) -> None:
         fh.write("\n")
 
 
+def default_data() -> str:
+    """The datasets folder of the benchmarks: ``$SHAPETREE_DATA``, else ``../shared/datasets``
+    beside the repository."""
+    return os.environ.get("SHAPETREE_DATA", str(REPO.parent / "shared" / "datasets"))
+
+
 def ethz_parser(doc: str | None, edges: bool = True) -> argparse.ArgumentParser:
     """The arguments the ETHZ ranking scripts share: ``--data`` (default
     ``$SHAPETREE_DATA``, else ``../shared/datasets``), ``--workers``, ``--json`` and,
     with ``edges``, ``--edges {pb,own}`` and ``--detections`` (a cache of eval_ethz.py)."""
     ap = argparse.ArgumentParser(description=(doc or "").splitlines()[0] if doc else None)
-    default_data = os.environ.get("SHAPETREE_DATA", str(REPO.parent / "shared" / "datasets"))
-    ap.add_argument("--data", default=default_data)
+    ap.add_argument("--data", default=default_data())
     if edges:
         ap.add_argument("--edges", choices=("pb", "own"), default="pb")
         ap.add_argument("--detections", required=True, help="the cached detections (eval_ethz.py)")

@@ -22,7 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ethz_verify as V  # noqa: E402
-from _common import RESULTS, machine, write_json  # noqa: E402
+from _common import RESULTS, default_data, machine, write_json  # noqa: E402
 from ethz_collection_terms import SHIPPED  # noqa: E402
 from ethz_template import CANDIDATES  # noqa: E402
 from ethz_template import TERMS as TEMPLATE_TERMS  # noqa: E402
@@ -37,7 +37,7 @@ def parser(doc: str) -> argparse.ArgumentParser:
     """``--rows`` (required), ``--data`` and ``--json``, described by the script's doc."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--rows", required=True, help="rows written by ethz_template.py --rows")
-    ap.add_argument("--data", default=None)
+    ap.add_argument("--data", default=default_data())
     ap.add_argument("--json", default=None)
     return ap
 
