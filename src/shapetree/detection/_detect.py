@@ -23,7 +23,7 @@ from ._edges import EDGE_METHODS, WEIGHTED_METHODS, edge_map, load_edges, load_i
 from ._model import DetectionModel, load_model
 from ._stitch import complete_matches, run_stitch
 from ._tables import contour_tables
-from ._template import TEMPLATE_TERMS, template_fields, template_model, template_terms
+from ._template import TEMPLATE_TERMS, grown_fit, template_fields, template_model, template_terms
 from ._verify import context_agreement
 
 #: the :class:`DetectParams` fields of the collection stage (several images, one model):
@@ -87,6 +87,19 @@ class DetectParams:
         Pb maps 0.8 raised the share of giraffes a kept box overlaps at IoU >= 0.5 from
         0.64 to 0.76, but the ranking still put the neck first, and the held-out mean DR
         at 0.4 FPPI fell from 0.889 to 0.841 (``benchmarks/ethz_detector_params.py``).
+    box_refine : float or None
+        Box refinement, after the suppression and the ranking score (None: off). The
+        upright template search of each kept detection's box (:attr:`Detection.template`)
+        is widened (:func:`~shapetree.detection._template.grown_fit`: the model up to
+        twice the box, moved by up to 0.3 box sides); where its mean point cost is below
+        the in-box fit's by more than ``box_refine``, the detection's ``bbox`` becomes
+        the box of that placement, clipped to the image, and ``match_bbox`` keeps the
+        match's. A detection whose box then overlaps a better-scoring one's by IoU above
+        :data:`REFINE_IOU` is dropped. The score and every term of the collection
+        re-scorer stay those of the match's box; only the box reported changes. A match
+        that covers part of the object (a giraffe's neck and back, the legs left to
+        gaps) is then reported with the whole object's box. Needs an edge map (off with
+        ``contours=`` and no image). In ``[0, 1)``.
     score_pool : int
         Which matches the suppression keeps. ``N > 0`` (default 30): the ``N`` cheapest
         complete matches with distinct boxes (IoU at most :data:`POOL_IOU` with a
@@ -224,6 +237,7 @@ class DetectParams:
     min_size: float = 24.0
     nms_iou: float = 0.3
     nms_nested: float | None = None
+    box_refine: float | None = None
     score_pool: int = 30
     weak_cost: float = 0.0
     strong_edge: float = 0.3
@@ -290,6 +304,16 @@ class DetectParams:
         sp = self.score_pool
         if isinstance(sp, bool) or not isinstance(sp, numbers.Integral) or sp < 0:
             raise ShapeTreeError(f"DetectParams.score_pool must be an integer >= 0, got {sp!r}")
+        br = self.box_refine
+        if br is not None and (
+            isinstance(br, bool)
+            or not isinstance(br, numbers.Real)
+            or not np.isfinite(br)
+            or not 0 <= br < 1
+        ):
+            raise ShapeTreeError(
+                f"DetectParams.box_refine must be None or a number in [0, 1), got {br!r}"
+            )
         nn = self.nms_nested
         if nn is not None:
             if (
@@ -327,14 +351,14 @@ class DetectParams:
         return self.collection_rescore or self.appearance_check > 0
 
     def as_dict(self, collection: bool = True) -> dict[str, Any]:
-        """All parameters as a JSON-friendly dict (``edge_weights`` and ``nms_nested``
-        only when set).
+        """All parameters as a JSON-friendly dict (``edge_weights``, ``nms_nested`` and
+        ``box_refine`` only when set).
 
         ``collection=False`` leaves out the collection stage's fields
         (:data:`COLLECTION_FIELDS`), which never change one image's detections: the
         keys of per-image caches are made from that form."""
         d = dataclasses.asdict(self)
-        for name in ("edge_weights", "nms_nested"):
+        for name in ("edge_weights", "nms_nested", "box_refine"):
             if d[name] is None:
                 del d[name]
         if not collection:
@@ -377,6 +401,10 @@ class Detection:
         Matched contours in model order: ``contour`` (index into
         ``DetectionRun.contours``), ``reversed``, ``model_start``,
         ``model_len`` (segments), ``cost``.
+    match_bbox : tuple of float or None
+        Where ``DetectParams.box_refine`` replaced ``bbox`` by the box of the widened
+        template fit: the box of the match (the one described under ``bbox``, which every
+        ranking term is computed from). None where ``bbox`` is the match's.
     template, template_support, template_gain, box_density : float
         The upright template check of the box (:mod:`shapetree.detection._template`):
         how well the model as drawn, fitted to the box's edges by an oriented chamfer
@@ -399,10 +427,17 @@ class Detection:
     template_support: float = 0.0
     template_gain: float = 0.0
     box_density: float = 0.0
+    match_bbox: tuple[float, float, float, float] | None = None
+
+    @property
+    def match_box(self) -> tuple[float, float, float, float]:
+        """The box of the match: ``match_bbox`` where the box was refined, else ``bbox``."""
+        return self.bbox if self.match_bbox is None else self.match_bbox
 
     def to_json(self) -> dict[str, Any]:
-        """JSON-friendly dict (lists of floats)."""
-        return {
+        """JSON-friendly dict (lists of floats; ``match_bbox`` only where the box was
+        refined)."""
+        doc = {
             "score": float(self.score),
             "cost": float(self.cost),
             "bbox": [float(v) for v in self.bbox],
@@ -414,6 +449,9 @@ class Detection:
             "pieces": [dict(p) for p in self.pieces],
             **{t: float(getattr(self, t)) for t in TEMPLATE_TERMS},
         }
+        if self.match_bbox is not None:
+            doc["match_bbox"] = [float(v) for v in self.match_bbox]
+        return doc
 
 
 @dataclass
@@ -854,8 +892,87 @@ def _select(
         fields = template_fields(e, p.threshold)
         tm = template_model(kept[0].model_points)
         kept = [dataclasses.replace(d, **template_terms(fields, tm, d.bbox)) for d in kept]
+        if p.box_refine is not None:
+            kept = _refine_boxes(kept, fields, tm, p.box_refine, e.shape)
     kept.sort(key=lambda d: -d.score)
     return kept
+
+
+#: ``box_refine``: a detection whose refined box overlaps a better-scoring one's by more
+#: than this IoU is dropped (two matches of one object, grown to the same box)
+REFINE_IOU = 0.5
+
+
+def refine_plan(
+    scores: ArrayLike,
+    boxes: ArrayLike,
+    template: ArrayLike,
+    grown_cost: ArrayLike,
+    grown_box: ArrayLike,
+    delta: float,
+    shape: tuple[int, ...],
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+    """The box refinement of one image's kept detections (``DetectParams.box_refine``).
+
+    Parameters
+    ----------
+    scores : array_like, shape (n,)
+        Their ranking scores (the duplicates are dropped in this order, best first).
+    boxes : array_like, shape (n, 4)
+        Their match boxes ``(x1, y1, x2, y2)`` (px).
+    template : array_like, shape (n,)
+        Their ``template`` terms (1 - the in-box fit's mean point cost).
+    grown_cost, grown_box : array_like, shapes (n,) and (n, 4)
+        :func:`~shapetree.detection._template.grown_fit` of each box.
+    delta : float
+        ``box_refine``: how much lower the widened fit's cost must be.
+    shape : tuple of int
+        ``(H, W)`` of the image (the refined boxes are clipped to it).
+
+    Returns
+    -------
+    box : ndarray, shape (n, 4)
+        Each detection's box, refined or its match box.
+    refined : ndarray, shape (n,), bool
+        Whether it was refined.
+    keep : ndarray, shape (n,), bool
+        False for a detection whose box overlaps a better-scoring kept one's by IoU above
+        :data:`REFINE_IOU`.
+    """
+    h, w = shape[:2]
+    box = np.array(boxes, dtype=np.float64).reshape(-1, 4)
+    grown = np.asarray(grown_box, dtype=np.float64).reshape(-1, 4)
+    better = (1.0 - np.asarray(template, float)) - np.asarray(grown_cost, float) > delta
+    clipped = np.c_[np.maximum(grown[:, :2], 0.0), np.minimum(grown[:, 2:], [w, h])]
+    refined = better & (clipped[:, 2] > clipped[:, 0]) & (clipped[:, 3] > clipped[:, 1])
+    box[refined] = clipped[refined]
+    keep = np.zeros(len(box), bool)
+    for i in np.argsort(-np.asarray(scores, float), kind="stable"):
+        if keep.any() and np.any(_box_iou(box[i], box[keep]) > REFINE_IOU):
+            continue
+        keep[i] = True
+    return box, refined, keep
+
+
+def _refine_boxes(
+    kept: list[Detection], fields: Any, tm: Any, delta: float, shape: tuple[int, ...]
+) -> list[Detection]:
+    """``kept`` with the boxes of :func:`refine_plan` (``DetectParams.box_refine``)."""
+    fits = [grown_fit(fields, tm, d.bbox) for d in kept]
+    box, refined, keep = refine_plan(
+        [d.score for d in kept],
+        [d.bbox for d in kept],
+        [d.template for d in kept],
+        [c for c, _ in fits],
+        [b for _, b in fits],
+        delta,
+        shape,
+    )
+    return [
+        dataclasses.replace(d, bbox=tuple(float(v) for v in b), match_bbox=d.bbox) if r else d
+        for d, b, r, k in zip(kept, box, refined, keep, strict=True)
+        if k
+    ]
 
 
 #: ``score_pool``: matches whose boxes overlap a cheaper one in the pool by more than this

@@ -411,6 +411,7 @@ def _run_one(
                 "matched": [bool(v) for v in d.matched],
                 "pieces": [[int(p["contour"]), bool(p["reversed"])] for p in d.pieces],
                 **{t: float(getattr(d, t)) for t in TEMPLATE_TERMS},
+                **({} if d.match_bbox is None else {"match_bbox": list(d.match_bbox)}),
             }
             for d in run.detections
         ],

@@ -238,7 +238,8 @@ def collection_table(
         The image of each detection.
     detections : sequence of mapping, length N
         Each with ``score``, ``bbox``, ``coverage``, ``image_points`` and the four
-        template terms (as in a :meth:`Detection.to_json` record).
+        template terms (as in a :meth:`Detection.to_json` record; its ``match_bbox``, where
+        there is one, is the box the terms are computed from).
     model_points : array_like, shape (m, 2)
         The model's samples (the same model for every detection).
     image_shapes : mapping
@@ -264,7 +265,9 @@ def collection_table(
     if not params.collection_rescore:
         return scores + params.appearance_check * agreement, {"appearance": agreement}
     rows = [
-        detection_terms(model_points, d["image_points"], d["bbox"], d["coverage"], image_shapes[k])
+        detection_terms(
+            model_points, d["image_points"], _match_box(d), d["coverage"], image_shapes[k]
+        )
         for k, d in zip(keys, detections, strict=True)
     ]
     terms = {t: np.array([r[t] for r in rows]) for t in DETECTION_TERMS}
@@ -279,6 +282,13 @@ def collection_table(
             ) from None
     terms["appearance"] = agreement
     return rescore_collection(keys, scores, terms, params.context_check)
+
+
+def _match_box(d: Mapping[str, Any]) -> Sequence[float]:
+    """The box of a detection record's match (``match_bbox`` where ``box_refine`` replaced
+    its ``bbox``): the box every term is computed from."""
+    box = d.get("match_bbox")
+    return d["bbox"] if box is None else box
 
 
 def collection_formula(params: DetectParams) -> str:

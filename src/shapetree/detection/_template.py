@@ -47,6 +47,7 @@ __all__ = [
     "TEMPLATE_TERMS",
     "TemplateFields",
     "box_density",
+    "grown_fit",
     "template_fields",
     "template_model",
     "template_terms",
@@ -63,6 +64,9 @@ SCALES = (0.85, 1.0, 1.15)
 SHIFTS = (-0.1, 0.0, 0.1)
 ASPECTS = (0.8, 1.0, 1.25)
 ROTATIONS = tuple(float(v) for v in np.deg2rad((-8.0, 0.0, 8.0)))
+#: the widened search of :func:`grown_fit` (it includes SCALES and SHIFTS)
+GROWN_SCALES = (0.85, 1.0, 1.15, 1.3, 1.5, 1.75, 2.0)
+GROWN_SHIFTS = (-0.3, -0.2, -0.1, 0.0, 0.1, 0.2, 0.3)
 #: the turns of the two searches: upright, and on either side
 UPRIGHT = (0.0,)
 ON_SIDE = (np.pi / 2, -np.pi / 2)
@@ -150,6 +154,7 @@ def _search(dt, theta, vp, vn, cx, cy, side, scales, shifts, tau):  # pragma: no
     h, w = dt.shape
     nv, nk = vn.shape
     best, best_sup = np.inf, 0.0
+    arg_v, arg_sc, arg_x, arg_y = 0, 1.0, cx, cy
     for sc in scales:
         t = tau * sc * side
         for dx in shifts:
@@ -176,17 +181,26 @@ def _search(dt, theta, vp, vn, cx, cy, side, scales, shifts, tau):  # pragma: no
                     mean = total / nk
                     if mean < best:
                         best, best_sup = mean, sup / nk
-    return best, best_sup
+                        arg_v, arg_sc, arg_x, arg_y = v, sc, ox, oy
+    return best, best_sup, arg_v, arg_sc, arg_x, arg_y
 
 
-def _best(fields: TemplateFields, model, bbox: Sequence[float], turns) -> tuple[float, float]:
-    """Least mean point cost of the search with ``turns``, and the share of model points
-    at that placement within ``t`` of an edge whose normal is within 30 degrees."""
+def _place(
+    fields: TemplateFields,
+    model,
+    bbox: Sequence[float],
+    turns,
+    scales: Sequence[float] = SCALES,
+    shifts: Sequence[float] = SHIFTS,
+) -> tuple[float, float, tuple[float, float, float, float]]:
+    """The search with ``turns`` over ``scales`` and ``shifts`` (shares of the box side):
+    the least mean point cost, the share of model points at that placement within ``t``
+    of an edge whose normal is within 30 degrees, and the placed model's box."""
     dt, theta, _ = fields
     x1, y1, x2, y2 = (float(v) for v in bbox)
     bw, bh = max(x2 - x1, 1.0), max(y2 - y1, 1.0)
     vp, vn = _variants(model, turns, (bw, bh))
-    best, support = _search(
+    best, support, v, sc, ox, oy = _search(
         dt,
         theta,
         vp,
@@ -194,11 +208,56 @@ def _best(fields: TemplateFields, model, bbox: Sequence[float], turns) -> tuple[
         (x1 + x2) / 2,
         (y1 + y2) / 2,
         float(np.sqrt(bw * bh)),
-        np.array(SCALES),
-        np.array(SHIFTS),
+        np.asarray(scales, dtype=np.float64),
+        np.asarray(shifts, dtype=np.float64),
         TAU,
     )
-    return float(best), float(support)
+    q = vp[v] * sc + np.array([ox, oy])
+    lo, hi = q.min(0), q.max(0)
+    return float(best), float(support), (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+
+
+def _best(fields: TemplateFields, model, bbox: Sequence[float], turns) -> tuple[float, float]:
+    """Least mean point cost of the search with ``turns``, and the share of model points
+    at that placement within ``t`` of an edge whose normal is within 30 degrees."""
+    best, support, _ = _place(fields, model, bbox, turns)
+    return best, support
+
+
+def grown_fit(
+    fields: TemplateFields,
+    model: tuple[NDArray[np.float64], NDArray[np.float64]],
+    bbox: Sequence[float],
+) -> tuple[float, tuple[float, float, float, float]]:
+    """The upright template search widened around a detection's box: its least mean
+    point cost and the box of that placement (``DetectParams.box_refine``).
+
+    The same placements as ``template`` (the model as drawn or mirrored, turned by -8, 0
+    or 8 degrees, its aspect 0.8, 1 or 1.25), scaled by each of :data:`GROWN_SCALES` and
+    moved by each of :data:`GROWN_SHIFTS` box sides in x and in y: the object may be up
+    to twice the box (a detection that matched a giraffe's neck and back, the legs left to
+    gaps). Its cost is never above ``1 - template`` (the search holds the template's own).
+
+    Parameters
+    ----------
+    fields : tuple of ndarray
+        :func:`template_fields` of the image's edge map.
+    model : tuple of ndarray
+        :func:`template_model` of the model's samples.
+    bbox : sequence of 4 floats
+        ``(x1, y1, x2, y2)`` of the detection (px).
+
+    Returns
+    -------
+    cost : float
+        Least mean point cost, in ``[0, 1]``.
+    box : tuple of 4 floats
+        ``(x1, y1, x2, y2)`` of the placed template (px; may reach past the image).
+    """
+    if len(bbox) != 4 or not np.isfinite(np.asarray(bbox, dtype=float)).all():
+        raise ShapeTreeError(f"grown_fit: bbox must be 4 finite numbers, got {bbox!r}")
+    cost, _, box = _place(fields, model, bbox, UPRIGHT, GROWN_SCALES, GROWN_SHIFTS)
+    return cost, box
 
 
 def template_terms(
