@@ -62,13 +62,16 @@ def test_swan_detections_find_the_swan(stem: str, ranking: str) -> None:
     assert all(np.isfinite(scores)) and all(np.isfinite(d.cost) for d in dets)
     assert scores == sorted(scores, reverse=True)
     for d in dets:
-        x1, y1, x2, y2 = d.bbox
         pts = np.asarray(d.image_points)
         assert pts.shape == (len(model.points), 2) and np.isfinite(pts).all()
         on = pts[np.asarray(d.matched)]
         assert len(on) and (on >= 0).all() and (on[:, 0] <= w).all() and (on[:, 1] <= h).all()
-        assert (x1, y1, x2, y2) == pytest.approx((*pts.min(0), *pts.max(0)))
+        # the match's box is the box of its placement; a refined box lies in the image
+        assert d.match_box == pytest.approx((*pts.min(0), *pts.max(0)))
+        x1, y1, x2, y2 = d.bbox
         assert x1 < w and y1 < h and x2 > 0 and y2 > 0, (d.bbox, (w, h))
+        if d.match_bbox is not None:
+            assert 0 <= x1 < x2 <= w and 0 <= y1 < y2 <= h
     assert max(_iou(d.bbox, g) for d in dets for g in gt) >= 0.2
 
 

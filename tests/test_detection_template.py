@@ -149,14 +149,14 @@ def test_bad_inputs() -> None:
 
 def test_detections_carry_the_template_terms() -> None:
     """``detect`` on a drawn scene: each detection's record has the four terms, equal to
-    the check computed on its box."""
+    the check computed on its match's box (``match_box``: the box before any refinement)."""
     model, e, bbox = _scene(0.0)
     dets = detect(model * 30, None, edges=e, k=2)
     assert dets
     fields = template_fields(e, 0.15)
     for d in dets:
         rec = d.to_json()
-        want = template_terms(fields, template_model(d.model_points), d.bbox)
+        want = template_terms(fields, template_model(d.model_points), d.match_box)
         for t in TEMPLATE_TERMS:
             assert rec[t] == pytest.approx(want[t])
     assert dets[0].template > 0.8

@@ -265,7 +265,7 @@ STAGES = {
     "stitch": "stitching DP with gaps",
     "select": "verification and selection: reconstruction of each complete match, the "
     "holistic outline check and size prior of the ranking score, non-maximum suppression, "
-    "and the upright template check of each kept detection's box",
+    "the upright template check of each kept detection's box and the box refinement",
     "appearance": "collection stage: the image read and its Lab colour "
     "bins, the colour histogram inside each kept detection's outline, divided by the number "
     "of models run on the image (done once per image); the agreements themselves are "
