@@ -29,6 +29,17 @@ that run and not changed after it):
   mean, then off, then the smaller value), scored on the fifth; ``on_all_five``: the same
   choice over all five classes, the setting that would ship.
 
+Added after the run, as a check (``in_sample``): every row ranked by the library's
+collection score (``base + sum RESCORER_WEIGHTS[t] * t``, the shipped weights fitted on
+all five classes) under each setting; the shipped setting's figures are those of the
+library's whole protocol (``eval_ethz.py``, ``ethz.json``).
+
+``--score-rows OWN_ROWS --score-edges DIR`` (added after the run, for issue 14's item 2):
+the own edge map's run, each class ranked as ``ethz_within_image.py --score-rows`` ranks
+it (fitted on the Pb rows of the four other classes) and its boxes refined on the own map
+with the setting chosen in that fold: held out as to class and edge source
+(``cross_to_other_edges``).
+
 Adoption rule, fixed before this script was run: make ``on_all_five`` the default if it is
 not off, the held-out figure is higher under PASCAL than 0.8224 and not lower under the
 20% rule than 0.8886, and the median time per image and model of the ETHZ protocol stays
@@ -62,6 +73,7 @@ from shapetree.detection._ethz_eval import (  # noqa: E402
     dr_fppi_curve,
     ethz_root,
 )
+from shapetree.detection._rescore import RESCORER_WEIGHTS  # noqa: E402
 from shapetree.detection._template import grown_fit, template_fields, template_model  # noqa: E402
 
 #: the settings compared (None: off)
@@ -72,8 +84,27 @@ def name(v: float | None) -> str:
     return "off" if v is None else f"box_refine={v}"
 
 
-def grown_fits(root: Path, rows: list[dict]) -> tuple[np.ndarray, np.ndarray, dict]:
-    """``grown_fit`` of every row's box on its image's Pb map, and each image's shape."""
+def pb_map(root: Path):
+    """The edge maps of the Pb run: the dataset's own files."""
+
+    def edges_of(key: str) -> np.ndarray:
+        folder, stem = key.split("/")
+        return load_edges(root / folder / f"{stem}_edges.tif")
+
+    return edges_of
+
+
+def cached_map(folder: Path):
+    """The edge maps of a computed run (the per-image edge cache of ``eval_ethz.py``)."""
+
+    def edges_of(key: str) -> np.ndarray:
+        return np.load(folder / f"{key.replace('/', '__')}.npz")["edges"]
+
+    return edges_of
+
+
+def grown_fits(root: Path, rows: list[dict], edges_of) -> tuple[np.ndarray, np.ndarray, dict]:
+    """``grown_fit`` of every row's box on its image's edge map, and each image's shape."""
     p = DetectParams()
     models = {
         c: template_model(load_model(root / "models" / f"{mf}.tif", m=p.m).points)
@@ -84,8 +115,7 @@ def grown_fits(root: Path, rows: list[dict]) -> tuple[np.ndarray, np.ndarray, di
     for i, r in enumerate(rows):
         by_key.setdefault(r["key"], []).append(i)
     for key, idx in by_key.items():
-        folder, stem = key.split("/")
-        e = load_edges(root / folder / f"{stem}_edges.tif")
+        e = edges_of(key)
         shapes[key] = e.shape
         fields = template_fields(e, p.threshold)
         for i in idx:
@@ -136,13 +166,18 @@ def choose(per: dict, classes: list[str]) -> float | None:
 def main() -> None:
     ap = parser(__doc__)
     ap.add_argument("--within", required=True, help="the ethz_within_image.py record to rank by")
+    ap.add_argument("--score-rows", default=None, help="rows of a run on another edge source")
+    ap.add_argument(
+        "--score-edges", default=None, help="that run's per-image edge cache (the maps' folder)"
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
     r = Rows.read(args.rows, args.data)
     rows, sc, label = r.rows, r.sc, r.label
     record = json.loads(Path(args.within).read_text())
     s, _ = held_out_within(sc, rows, label, r.candidates(), record)
-    cost, box, shapes = grown_fits(ethz_root(args.data), rows)
+    root = ethz_root(args.data)
+    cost, box, shapes = grown_fits(root, rows, pb_map(root))
     per: dict = {}
     out: dict = {"protocol": __doc__, "rows": args.rows, "within": args.within, "settings": {}}
     for v in SETTINGS:
@@ -172,12 +207,61 @@ def main() -> None:
         "loco_overlap_50": V._with_mean(held, 1),
     }
     out["on_all_five"] = name(choose(per, list(ETHZ_CLASSES)))
+    shipped = sc.col("base") + sum(w * sc.col(t) for t, w in RESCORER_WEIGHTS.items())
+    out["in_sample"] = {}
+    for v in SETTINGS:
+        boxes, keep = boxes_for(rows, sc, v, cost, box, shapes)
+        got = {c: dr_pair(sc, rows, shipped, boxes, keep, c) for c in ETHZ_CLASSES}
+        out["in_sample"][name(v)] = {
+            "overlap_20": V._with_mean(got, 0),
+            "overlap_50": V._with_mean(got, 1),
+        }
+    ins = out["in_sample"][out["on_all_five"]]
+    print(
+        f"in sample ({out['on_all_five']}, the shipped weights): "
+        f"{ins['overlap_20']['mean']:.4f} / {ins['overlap_50']['mean']:.4f}"
+    )
     h = out["chosen_in_each_fold"]
     print(
         f"chosen in each fold: held out {h['loco_overlap_20']['mean']:.4f} / "
         f"{h['loco_overlap_50']['mean']:.4f} {chosen}; on all five: {out['on_all_five']}"
     )
+    if args.score_rows:
+        out["cross_to_other_edges"] = cross(args, r, record, root, chosen)
     finish(out, args, t0, "ethz_box_refine.py", "ethz_box_refine_pb.json")
+
+
+def cross(args, r: Rows, record: dict, root: Path, chosen: dict) -> dict:
+    """The other edge source's rows, each class ranked by the within record's held-out
+    choice fitted on the four other classes of ``r`` and refined on its own edge map with
+    the setting chosen in that fold: held out as to class and edge source."""
+    t = Rows.read(args.score_rows, args.data)
+    s, _ = held_out_within(r.sc, r.rows, r.label, r.candidates(), record, target=t)
+    cost, box, shapes = grown_fits(root, t.rows, cached_map(Path(args.score_edges)))
+    per = {}
+    for v in SETTINGS:
+        boxes, keep = boxes_for(t.rows, t.sc, v, cost, box, shapes)
+        per[name(v)] = {c: dr_pair(t.sc, t.rows, s, boxes, keep, c) for c in ETHZ_CLASSES}
+    held = {c: per[chosen[c]][c] for c in ETHZ_CLASSES}
+    out = {
+        "score_rows": args.score_rows,
+        "score_edges": args.score_edges,
+        "off": {
+            "loco_overlap_20": V._with_mean(per["off"], 0),
+            "loco_overlap_50": V._with_mean(per["off"], 1),
+        },
+        "chosen_in_each_fold": {
+            "loco_overlap_20": V._with_mean(held, 0),
+            "loco_overlap_50": V._with_mean(held, 1),
+        },
+    }
+    h, o = out["chosen_in_each_fold"], out["off"]
+    print(
+        f"other edges, held out as to class and source: {h['loco_overlap_20']['mean']:.4f} / "
+        f"{h['loco_overlap_50']['mean']:.4f} (off {o['loco_overlap_20']['mean']:.4f} / "
+        f"{o['loco_overlap_50']['mean']:.4f})"
+    )
+    return out
 
 
 if __name__ == "__main__":

@@ -161,6 +161,16 @@ def test_collection_table_modes() -> None:
     old = [{k: v for k, v in d.items() if k != "template_gain"} for d in dets]
     with pytest.raises(ShapeTreeError, match="no 'template_gain'"):
         collection_table(keys, old, model, shapes, hists, DetectParams())
+    # a refined box (box_refine) changes what is reported, not the terms: they are
+    # computed from the match's box, so the collection scores stay the same
+    grown = [{**d, "bbox": [0.0, 0.0, 120.0, 120.0], "match_bbox": d["bbox"]} for d in dets]
+    cs3, table3 = collection_table(keys, grown, model, shapes, hists, DetectParams())
+    assert cs3 == pytest.approx(cs)
+    assert table3["frame"] == pytest.approx(table["frame"])
+    moved = [{**d, "bbox": [0.0, 0.0, 120.0, 120.0]} for d in dets]  # no match_bbox
+    assert not np.allclose(
+        collection_table(keys, moved, model, shapes, hists, DetectParams())[0], cs
+    )
 
 
 def test_errors_name_the_problem() -> None:

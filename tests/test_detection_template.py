@@ -7,8 +7,11 @@ import pytest
 
 from shapetree import ShapeTreeError
 from shapetree.detection import detect
+from shapetree.detection._detect import REFINE_IOU, refine_plan
 from shapetree.detection._template import (
     ASPECTS,
+    GROWN_SCALES,
+    GROWN_SHIFTS,
     ON_SIDE,
     ROTATIONS,
     SCALES,
@@ -18,14 +21,16 @@ from shapetree.detection._template import (
     UPRIGHT,
     _variants,
     box_density,
+    grown_fit,
     template_fields,
     template_model,
     template_terms,
 )
 
 
-def _reference_best(fields, model, bbox, turns) -> tuple[float, float]:
-    """The search written plainly with NumPy, one placement batch at a time (the oracle)."""
+def _reference_best(fields, model, bbox, turns, scales=SCALES, shifts=SHIFTS, box=False):
+    """The search written plainly with NumPy, one placement batch at a time (the oracle):
+    the least mean cost and its support share (and, with ``box``, the placed box)."""
     dt, theta, _ = fields
     h, w = dt.shape
     x1, y1, x2, y2 = bbox
@@ -33,10 +38,11 @@ def _reference_best(fields, model, bbox, turns) -> tuple[float, float]:
     side = float(np.sqrt(bw * bh))
     vp, vn = _variants(model, turns, (bw, bh))
     best = (np.inf, 0.0)
-    for sc in SCALES:
+    placed = None
+    for sc in scales:
         t = TAU * sc * side
-        for dx in SHIFTS:
-            for dy in SHIFTS:
+        for dx in shifts:
+            for dy in shifts:
                 xy = vp * sc + np.array([(x1 + x2) / 2 + dx * side, (y1 + y2) / 2 + dy * side])
                 c = np.rint(xy[..., 0]).astype(int)
                 r = np.rint(xy[..., 1]).astype(int)
@@ -50,7 +56,8 @@ def _reference_best(fields, model, bbox, turns) -> tuple[float, float]:
                 i = int(np.argmin(mean))
                 if mean[i] < best[0]:
                     best = (float(mean[i]), float(np.mean(near[i] & (sin[i] < 0.5))))
-    return best
+                    placed = (*xy[i].min(0), *xy[i].max(0))
+    return (*best, placed) if box else best
 
 
 def _bottle(n: int = 60) -> np.ndarray:
@@ -164,3 +171,97 @@ def test_detections_carry_the_template_terms() -> None:
 
 def test_search_grid_is_the_documented_one() -> None:
     assert len(SCALES) * len(SHIFTS) ** 2 * 2 * len(ROTATIONS) * len(ASPECTS) == 486
+
+
+def test_grown_fit_equals_the_numpy_reference() -> None:
+    rng = np.random.default_rng(1)
+    e = np.clip(rng.normal(0.0, 0.3, (90, 120)), 0, 1)
+    model = template_model(_bottle())
+    fields = template_fields(e, 0.15)
+    for _ in range(4):
+        x1, y1 = rng.uniform(0, 60), rng.uniform(0, 40)
+        bbox = (x1, y1, x1 + rng.uniform(8, 50), y1 + rng.uniform(8, 50))
+        cost, box = grown_fit(fields, model, bbox)
+        want_cost, _, want_box = _reference_best(
+            fields, model, bbox, UPRIGHT, GROWN_SCALES, GROWN_SHIFTS, box=True
+        )
+        assert cost == pytest.approx(want_cost, abs=1e-12)
+        assert box == pytest.approx(want_box, abs=1e-9)
+        # the widened search holds the template's own placements: never a worse fit
+        assert cost <= 1 - template_terms(fields, model, bbox)["template"] + 1e-12
+    assert set(SCALES) <= set(GROWN_SCALES) and set(SHIFTS) <= set(GROWN_SHIFTS)
+    with pytest.raises(ShapeTreeError, match="bbox"):
+        grown_fit(fields, model, (0, 0, np.nan, 5))
+
+
+def test_grown_fit_finds_the_whole_object_around_its_part() -> None:
+    """A box around the upper half of a drawn bottle: the widened fit's box is the whole
+    bottle's, and it fits far better than the template inside the half box."""
+    model, e, whole = _scene(0.0)
+    x1, y1, x2, y2 = whole
+    half = (x1, y1, x2, (y1 + y2) / 2)
+    fields = template_fields(e, 0.15)
+    tm = template_model(model)
+    cost, box = grown_fit(fields, tm, half)
+    in_box = 1 - template_terms(fields, tm, half)["template"]
+    assert cost < in_box - 0.2
+    assert _iou(box, whole) > 0.75
+    # a box that is already the whole object's stays about where it is
+    cost_w, box_w = grown_fit(fields, tm, whole)
+    assert _iou(box_w, whole) > 0.75 and cost_w < 0.2
+
+
+def test_refine_plan_replaces_clips_and_drops_duplicates() -> None:
+    scores = [3.0, 2.0, 1.0]
+    boxes = [[10, 10, 20, 20], [100, 100, 140, 140], [12, 12, 22, 22]]
+    template = [0.6, 0.9, 0.6]  # in-box costs 0.4, 0.1, 0.4
+    grown_cost = [0.2, 0.08, 0.3]
+    grown_box = [[5, 5, 60, 60], [90, 90, 150, 150], [0, 0, 58, 58]]
+    box, refined, keep = refine_plan(
+        scores, boxes, template, grown_cost, grown_box, 0.05, (50, 200)
+    )
+    # the first and third fit better by more than 0.05 (0.2, 0.1); the second by 0.02
+    assert refined.tolist() == [True, False, True]
+    np.testing.assert_allclose(box[0], [5, 5, 60, 50])  # clipped to the image (H 50)
+    np.testing.assert_allclose(box[1], boxes[1])
+    np.testing.assert_allclose(box[2], [0, 0, 58, 50])
+    # the third, grown onto the first's object, overlaps its box by IoU > REFINE_IOU
+    assert _iou(box[2], box[0]) > REFINE_IOU
+    assert keep.tolist() == [True, True, False]
+    # a larger delta refines nothing and keeps all three (their match boxes are apart)
+    box, refined, keep = refine_plan(
+        scores, boxes, template, grown_cost, grown_box, 0.25, (50, 200)
+    )
+    assert not refined.any() and keep.all()
+    np.testing.assert_allclose(box, boxes)
+
+
+def test_detect_reports_the_refined_box_and_keeps_the_match_box() -> None:
+    """On a drawn bottle whose lower half is gone from the contours but not from the edge
+    map, the match covers the top, and the box reported is the whole bottle's."""
+    from shapetree.detection import DetectParams
+
+    model, e, whole = _scene(0.0)
+    placed = model * 30 + [100, 110]
+    top = placed[placed[:, 1] < 110 + 0.2 * 30]  # the top of the outline only
+    dets = detect(model * 30, None, edges=e, contours=[top], k=1)
+    plain = detect(model * 30, None, edges=e, contours=[top], k=1, box_refine=None)
+    assert dets and plain
+    assert plain[0].match_bbox is None and dets[0].match_bbox is not None
+    assert dets[0].match_box == pytest.approx(plain[0].bbox)
+    assert dets[0].score == plain[0].score
+    assert _iou(dets[0].bbox, whole) > max(0.75, _iou(plain[0].bbox, whole))
+    assert dets[0].to_json()["match_bbox"] == pytest.approx(list(plain[0].bbox))
+    assert "match_bbox" not in plain[0].to_json()
+    assert DetectParams().box_refine == 0.05
+    for bad in (-0.1, 1.0, float("nan"), True, "0.05"):
+        with pytest.raises(ShapeTreeError, match="box_refine"):
+            DetectParams(box_refine=bad)
+
+
+def _iou(a, b) -> float:
+    ix = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+    iy = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+    inter = ix * iy
+    area = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+    return inter / area

@@ -28,8 +28,11 @@ MODEL is a silhouette or outline drawing (image), an SVG file (its first <path>,
 sub-folders). For each image the four stages of section 4 run (edge map, contours,
 contour-vs-model tables, stitching) and DIR receives NAME.json (the detections: score,
 cost, box, coverage, where each model point lands) and NAME.png (image, edges, contours,
-detections: Fig. 5). A run is resumable: an image whose record is there with the same
-model, parameters, edge source and image file is skipped (--force recomputes). A bad image
+detections: Fig. 5). A box is the whole object's where the upright model, fitted to the
+edges around the match and widened up to twice its box, fits better than inside it (the
+record's match_bbox then keeps the match's box; --param box_refine=None turns this off).
+A run is resumable: an image whose record is there with the same model, parameters, edge
+source and image file is skipped (--force recomputes). A bad image
 (unreadable, empty, too large) is reported on stderr, gets an error record, and the batch
 goes on; the exit status is then 1.
 
