@@ -320,3 +320,21 @@ def test_own_edges_find_the_swan_on_water() -> None:
     gt = np.loadtxt(ROOT / "Swans" / "aal_swans.groundtruth", ndmin=2)
     dets = detect(model, ROOT / "Swans" / "aal.jpg", k=5, edge_method="own")
     assert _iou(dets[0].bbox, gt[0]) >= 0.5
+
+
+@needs_data
+@pytest.mark.parametrize("stem", ["snack", "sun"])
+def test_box_refinement_reports_the_whole_giraffe(stem: str) -> None:
+    """Two photos where the best match covers the giraffe's neck and back: the reported
+    box is the whole animal's (IoU >= 0.5 with the ground truth, PASCAL's hit) while the
+    match's own box is not, and the match, its score and its box are those of the run
+    without the refinement."""
+    model = load_model(ROOT / "models" / "giraffe.tif")
+    gt = np.loadtxt(ROOT / "Giraffes" / f"{stem}_giraffes.groundtruth", ndmin=2)
+    edges = ROOT / "Giraffes" / f"{stem}_edges.tif"
+    best = detect(model, None, edges=edges, k=2)[0]
+    plain = detect(model, None, edges=edges, k=2, box_refine=None)[0]
+    assert best.match_bbox is not None and plain.match_bbox is None
+    assert best.match_box == pytest.approx(plain.bbox) and best.score == plain.score
+    assert max(_iou(best.bbox, g) for g in gt) >= 0.5
+    assert max(_iou(best.match_box, g) for g in gt) < 0.5
