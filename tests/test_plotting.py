@@ -268,3 +268,29 @@ def test_detect_to_files_picture_format_follows_the_extension(tmp_path):
     assert out.read_text().lstrip().startswith("<?xml")
     with pytest.raises(ShapeTreeError, match="unsupported picture format"):
         detect_to_files(tmp_path / "model.npy", tmp_path / "missing.png", out_png=tmp_path / "x.q")
+
+
+def test_refined_box_is_drawn_beside_the_match_box():
+    """A refined detection draws its reported box dashed and the match's box dotted."""
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+
+    from shapetree.detection import detect_detailed
+    from shapetree.plotting._detection import _draw_detection
+
+    circle = _circle()
+    run = detect_detailed(circle, None, contours=[circle[:25], circle[30:55]], k=1)
+    det = run.detections[0]
+    grown = tuple(v * f for v, f in zip(det.bbox, (0.5, 0.5, 1.5, 1.5), strict=True))
+    refined = dataclasses.replace(det, bbox=grown, match_bbox=det.bbox)
+    for d, n_boxes in ((det, 1), (refined, 2)):
+        fig, ax = plt.subplots()
+        _draw_detection(d, run.contours, ax)
+        boxes = [ln for ln in ax.get_lines() if len(ln.get_xdata()) == 5]
+        assert len(boxes) == n_boxes
+        assert boxes[-1].get_linestyle() == "--"
+        assert (min(boxes[-1].get_xdata()), max(boxes[-1].get_ydata())) == pytest.approx(
+            (d.bbox[0], d.bbox[3])
+        )
+        plt.close(fig)

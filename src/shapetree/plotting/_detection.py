@@ -92,7 +92,8 @@ def _draw_detection(
     color: str = "r",
     label: str | None = None,
 ) -> None:
-    """One detection: its matched contours, mapped model points (x: in a gap) and box."""
+    """One detection: its matched contours, mapped model points (x: in a gap) and box
+    (dashed; where the box was refined, the match's own box dotted inside it)."""
     for pc in det.pieces:
         c = np.asarray(contours[pc["contour"]], dtype=float)
         ax.plot(c[:, 0], c[:, 1], "-", color=color, lw=2.2)
@@ -102,6 +103,10 @@ def _draw_detection(
     ax.plot(closed[:, 0], closed[:, 1], ":", color=color, lw=0.8)
     ax.plot(ip[matched, 0], ip[matched, 1], ".", color=color, ms=4)
     ax.plot(ip[~matched, 0], ip[~matched, 1], "x", color=color, ms=4)
+    match = getattr(det, "match_bbox", None)
+    if match is not None:  # box_refine: the reported box is the widened template's
+        m1, n1, m2, n2 = match
+        ax.plot([m1, m2, m2, m1, m1], [n1, n1, n2, n2, n1], ":", color=color, lw=0.8)
     x1, y1, x2, y2 = det.bbox
     ax.plot([x1, x2, x2, x1, x1], [y1, y1, y2, y2, y1], "--", color=color, lw=1)
     text = label if label is not None else f"{det.cost:.3f}"
