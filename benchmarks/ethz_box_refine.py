@@ -69,8 +69,6 @@ from shapetree.detection import DetectParams, load_edges, load_model  # noqa: E4
 from shapetree.detection._detect import refine_plan  # noqa: E402
 from shapetree.detection._ethz_eval import (  # noqa: E402
     ETHZ_CLASSES,
-    dr_at_fppi,
-    dr_fppi_curve,
     ethz_root,
 )
 from shapetree.detection._rescore import RESCORER_WEIGHTS  # noqa: E402
@@ -141,17 +139,6 @@ def boxes_for(rows, sc, setting, cost, box, shapes) -> tuple[np.ndarray, np.ndar
     return out, keep
 
 
-def dr_pair(sc, rows, s, boxes, keep, cls: str) -> tuple[float, float]:
-    """Mean DR at 0.4 FPPI of one class, 20% rule and PASCAL."""
-    idx = [i for i in sc.rows_of(cls) if keep[i]]
-    dets = [(rows[i]["key"], float(s[i]), list(boxes[i])) for i in idx]
-    out = []
-    for thr in (0.2, 0.5):
-        fppi, dr, _ = dr_fppi_curve(dets, sc.gts[cls], sc.n, thr)
-        out.append(round(dr_at_fppi(fppi, dr, 0.4), 4))
-    return out[0], out[1]
-
-
 def choose(per: dict, classes: list[str]) -> float | None:
     """The setting with the best PASCAL mean over ``classes`` (ties as in the protocol)."""
 
@@ -178,11 +165,12 @@ def main() -> None:
     s, _ = held_out_within(sc, rows, label, r.candidates(), record)
     root = ethz_root(args.data)
     cost, box, shapes = grown_fits(root, rows, pb_map(root))
+    placed = {v: boxes_for(rows, sc, v, cost, box, shapes) for v in SETTINGS}
     per: dict = {}
     out: dict = {"protocol": __doc__, "rows": args.rows, "within": args.within, "settings": {}}
     for v in SETTINGS:
-        boxes, keep = boxes_for(rows, sc, v, cost, box, shapes)
-        per[name(v)] = {c: dr_pair(sc, rows, s, boxes, keep, c) for c in ETHZ_CLASSES}
+        boxes, keep = placed[v]
+        per[name(v)] = {c: sc.dr(c, s, boxes, keep) for c in ETHZ_CLASSES}
         rec = {
             "loco_overlap_20": V._with_mean(per[name(v)], 0),
             "loco_overlap_50": V._with_mean(per[name(v)], 1),
@@ -210,8 +198,7 @@ def main() -> None:
     shipped = sc.col("base") + sum(w * sc.col(t) for t, w in RESCORER_WEIGHTS.items())
     out["in_sample"] = {}
     for v in SETTINGS:
-        boxes, keep = boxes_for(rows, sc, v, cost, box, shapes)
-        got = {c: dr_pair(sc, rows, shipped, boxes, keep, c) for c in ETHZ_CLASSES}
+        got = {c: sc.dr(c, shipped, *placed[v]) for c in ETHZ_CLASSES}
         out["in_sample"][name(v)] = {
             "overlap_20": V._with_mean(got, 0),
             "overlap_50": V._with_mean(got, 1),
@@ -241,7 +228,7 @@ def cross(args, r: Rows, record: dict, root: Path, chosen: dict) -> dict:
     per = {}
     for v in SETTINGS:
         boxes, keep = boxes_for(t.rows, t.sc, v, cost, box, shapes)
-        per[name(v)] = {c: dr_pair(t.sc, t.rows, s, boxes, keep, c) for c in ETHZ_CLASSES}
+        per[name(v)] = {c: t.sc.dr(c, s, boxes, keep) for c in ETHZ_CLASSES}
     held = {c: per[chosen[c]][c] for c in ETHZ_CLASSES}
     out = {
         "score_rows": args.score_rows,

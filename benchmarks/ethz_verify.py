@@ -324,9 +324,16 @@ class _Scorer:
         """The rows whose detections the DR of ``cls`` counts."""
         return np.flatnonzero(self.cls == cls)
 
-    def dr(self, cls: str, s: np.ndarray) -> tuple[float, float]:
+    def dr(
+        self, cls: str, s: np.ndarray, boxes: np.ndarray | None = None, keep=None
+    ) -> tuple[float, float]:
+        """Mean DR at 0.4 FPPI of ``cls`` ranked by ``s`` (20% rule, PASCAL); ``boxes``
+        (N, 4) replace the rows' boxes, and rows not in ``keep`` are left out."""
         idx = self.rows_of(cls)
-        dets = [(self.rows[i]["key"], float(s[i]), self.rows[i]["bbox"]) for i in idx]
+        if keep is not None:
+            idx = idx[np.asarray(keep, bool)[idx]]
+        box = [self.rows[i]["bbox"] for i in idx] if boxes is None else list(boxes[idx])
+        dets = [(self.rows[i]["key"], float(s[i]), list(b)) for i, b in zip(idx, box)]
         out = []
         for thr in (0.2, 0.5):
             fppi, dr, _ = dr_fppi_curve(dets, self.gts[cls], self.n, thr)

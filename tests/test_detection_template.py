@@ -194,17 +194,22 @@ def test_grown_fit_equals_the_numpy_reference() -> None:
         grown_fit(fields, model, (0, 0, np.nan, 5))
 
 
-def test_grown_fit_finds_the_whole_object_around_its_part() -> None:
-    """A box of 0.6 times a drawn bottle, off its centre (the part a match may cover): the
-    widened fit's box is the whole bottle's, and it fits far better than the template
-    inside the part's box; a box that is already the whole stays there."""
+def _part_scene():
+    """A drawn bottle's template fields and model, a box of 0.6 times it a little above its
+    centre (the part a match may cover) and the whole bottle's box."""
     model, e, whole = _scene(0.0)
     x1, y1, x2, y2 = whole
     w, h = x2 - x1, y2 - y1
     cx, cy = (x1 + x2) / 2, (y1 + y2) / 2 - 0.1 * h
     part = (cx - 0.3 * w, cy - 0.3 * h, cx + 0.3 * w, cy + 0.3 * h)
-    fields = template_fields(e, 0.15)
-    tm = template_model(model)
+    return template_fields(e, 0.15), template_model(model), part, whole
+
+
+def test_grown_fit_finds_the_whole_object_around_its_part() -> None:
+    """A box of 0.6 times a drawn bottle, off its centre (the part a match may cover): the
+    widened fit's box is the whole bottle's, and it fits far better than the template
+    inside the part's box; a box that is already the whole stays there."""
+    fields, tm, part, whole = _part_scene()
     cost, box = grown_fit(fields, tm, part)
     in_box = 1 - template_terms(fields, tm, part)["template"]
     assert cost < in_box - 0.3
@@ -221,22 +226,16 @@ def test_refine_boxes_gives_the_whole_box_and_keeps_the_match_box() -> None:
     from shapetree.detection import Detection
     from shapetree.detection._detect import _refine_boxes
 
-    model, e, whole = _scene(0.0)
-    x1, y1, x2, y2 = whole
-    w, h = x2 - x1, y2 - y1
-    cx, cy = (x1 + x2) / 2, (y1 + y2) / 2 - 0.1 * h
-    part = (cx - 0.3 * w, cy - 0.3 * h, cx + 0.3 * w, cy + 0.3 * h)
-    fields = template_fields(e, 0.15)
-    tm = template_model(model)
+    fields, tm, part, whole = _part_scene()
     pts = np.zeros((4, 2))
     det = Detection(-1.0, -1.0, part, pts, pts, np.ones(4, bool), [], 0.5)
     det = dataclasses.replace(det, **template_terms(fields, tm, part))
-    (got,) = _refine_boxes([det], fields, tm, 0.05, e.shape)
+    (got,) = _refine_boxes([det], fields, tm, 0.05, fields.dt.shape)
     assert got.match_bbox == part and got.match_box == part
     assert _iou(got.bbox, whole) > 0.85 and got.score == det.score
     assert got.to_json()["match_bbox"] == pytest.approx(list(part))
     # with a threshold above the gain, the box stays the match's
-    (same,) = _refine_boxes([det], fields, tm, 0.9, e.shape)
+    (same,) = _refine_boxes([det], fields, tm, 0.9, fields.dt.shape)
     assert same.bbox == part and same.match_bbox is None
     assert "match_bbox" not in same.to_json()
 
