@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -269,7 +271,16 @@ def test_box_refine_parameter() -> None:
     from shapetree.detection import DetectParams
 
     assert DetectParams().box_refine == 0.05
-    assert "box_refine" not in DetectParams(box_refine=None).as_dict()
+    # off is recorded (None), not left out: the protocol's workers rebuild the parameters
+    # from as_dict(), and a missing field would come back as the default, 0.05
+    assert DetectParams(box_refine=None).as_dict()["box_refine"] is None
+    for p in (
+        DetectParams(),
+        DetectParams(box_refine=None),
+        DetectParams(box_refine=None, nms_nested=0.8, upright_cost=0.25),
+    ):
+        assert DetectParams(**p.as_dict()) == p
+        assert DetectParams(**json.loads(json.dumps(p.as_dict()))) == p
     for bad in (-0.1, 1.0, float("nan"), True, "0.05"):
         with pytest.raises(ShapeTreeError, match="box_refine"):
             DetectParams(box_refine=bad)

@@ -364,14 +364,18 @@ class DetectParams:
         return self.collection_rescore or self.appearance_check > 0
 
     def as_dict(self, collection: bool = True) -> dict[str, Any]:
-        """All parameters as a JSON-friendly dict (``edge_weights``, ``nms_nested`` and
-        ``box_refine`` only when set).
+        """All parameters as a JSON-friendly dict (``edge_weights`` and ``nms_nested``
+        only when set, so the keys of runs made before they existed stay; ``box_refine``
+        always, ``None`` when off, since its default is on).
+
+        ``DetectParams(**p.as_dict()) == p``: the ETHZ protocol's workers rebuild the
+        parameters from this form.
 
         ``collection=False`` leaves out the collection stage's fields
         (:data:`COLLECTION_FIELDS`), which never change one image's detections: the
         keys of per-image caches are made from that form."""
         d = dataclasses.asdict(self)
-        for name in ("edge_weights", "nms_nested", "box_refine"):
+        for name in ("edge_weights", "nms_nested"):
             if d[name] is None:
                 del d[name]
         if not collection:
