@@ -93,7 +93,7 @@ def test_weights_are_the_committed_fit() -> None:
     within-image fit over the twelve terms, each divided by its score's standard deviation,
     per unit of each term, scaled so ``base`` weighs 1, to the 4 decimals they are written
     with. Recomputed here from the two fits' full-precision constants."""
-    fit = json.loads((RESULTS / "ethz_within_image_pb.json").read_text())["fit_all"]
+    fit = json.loads((RESULTS / "ethz_within_image_pb_upright_0.25.json").read_text())["fit_all"]
     assert fit["combination"] == f"sum_{fit['gamma']:g}"
     per_unit: dict[str, float] = {}
     for part, scale in (("global_fit", 1.0), ("within_fit", fit["gamma"])):

@@ -69,7 +69,7 @@ def test_upright_cost_prefers_the_placement_standing_as_drawn() -> None:
     turned = _pieces(np.pi / 2, (340.0, 150.0), cut=None)  # whole, but on its side
     conts = upright + turned
     kw = dict(k=2, outline_check=0.0, context_check=0.0, frame_prior=0.0)
-    plain = detect(model, None, contours=conts, **kw)
+    plain = detect(model, None, contours=conts, upright_cost=0.0, **kw)
     assert plain[0].bbox[0] > 230  # rotation invariant: the whole turned copy wins
     prior = detect(model, None, contours=conts, upright_cost=0.5, **kw)
     assert prior[0].bbox[2] < 230  # the upright copy ranks first
@@ -92,5 +92,5 @@ def test_upright_cost_must_be_finite_and_not_negative(bad: float) -> None:
         detect(model, None, contours=[np.c_[np.arange(50.0), np.zeros(50)]], upright_cost=bad)
 
 
-def test_upright_cost_default_is_off() -> None:
-    assert DetectParams().upright_cost == 0.0
+def test_upright_cost_default() -> None:
+    assert DetectParams().upright_cost == 0.25  # chosen on ETHZ (ethz_detector_params.py)

@@ -81,8 +81,9 @@ def test_bad_inputs_name_the_problem() -> None:
 
 
 def test_context_check_only_adds_its_term_to_the_score() -> None:
-    # A broken mug among clutter: the kept detections are the same with the term on or
-    # off, and each score differs by exactly context_check * agreement.
+    # A broken mug among clutter: with the paper's cost-order suppression (the ranking
+    # terms then only re-order the kept matches) the kept detections are the same with
+    # the term on or off, and each score differs by exactly context_check * agreement.
     rng = np.random.default_rng(5)
     m = _mug(60)
     placed = 60.0 * m + [200.0, 150.0]
@@ -92,8 +93,8 @@ def test_context_check_only_adds_its_term_to_the_score() -> None:
         for _ in range(8)
     ]
     conts = pieces + clutter
-    on = detect(m, None, contours=conts, k=3)
-    off = detect(m, None, contours=conts, k=3, context_check=0.0)
+    on = detect(m, None, contours=conts, k=3, score_pool=0)
+    off = detect(m, None, contours=conts, k=3, score_pool=0, context_check=0.0)
     assert len(on) == len(off) >= 1
     w = DetectParams().context_check
     assert w > 0

@@ -35,12 +35,13 @@ box_density    share of edge pixels inside the box
 
 The weights are the sum of two fits on the ETHZ Shape Classes run with the Pb edge maps
 (5 hand-drawn models x 255 images, up to 5 kept detections each, suppressed in score
-order: ``DetectParams.score_pool`` 30), a detection being right where it overlaps a
+order: ``DetectParams.score_pool`` 30, stitched with the upright prior
+``DetectParams.upright_cost`` 0.25, boxes not refined), a detection being right where it overlaps a
 ground-truth box by IoU >= 0.2:
 
 - the **global** fit, a logistic regression over every detection on the standardised
   terms: it tells right from wrong across all photos at once. Its term set (the first
-  eight and ``template_gain``) and L2 penalty (1000) were chosen by leave-one-class-out
+  eight and ``template_support``) and L2 penalty (10000) were chosen by leave-one-class-out
   over the five classes among eight candidate sets (``benchmarks/ethz_template.py``);
 - the **within** fit, a conditional logit over each photo's detections of one model (a
   softmax over them; the likelihood is the mass on its right ones), on all twelve terms
@@ -53,11 +54,13 @@ ground-truth box by IoU >= 0.2:
   chosen by leave-one-class-out over the five classes.
 
 ``python3 benchmarks/ethz_within_image.py --rows <rows of ethz_template.py>`` writes them
-(``fit_all`` in ``benchmarks/results/ethz_within_image_pb.json``). Held out (mean DR at 0.4
-FPPI, 20% rule / PASCAL), every choice above made inside each fold on four classes and the
-fifth scored: **0.8886 / 0.8224**, against 0.8682 / 0.8039 for the global fit alone
-(``ethz_template_pb.json``) and 0.8359 / 0.7580 for the cost-order detections of the
-release before ``score_pool`` (``ethz_template_pb_cost_order.json``).
+(``fit_all`` in ``benchmarks/results/ethz_within_image_pb_upright_0.25.json``). Held out
+(mean DR at 0.4 FPPI, 20% rule / PASCAL), every choice above made inside each fold on four
+classes and the fifth scored, the boxes not refined: 0.8814 / 0.8164 on these detections,
+0.9050 / 0.8408 on those of ``upright_cost`` 0.5, 0.8886 / 0.8224 on those without the
+upright prior (the release before, ``ethz_within_image_pb.json``); with the boxes refined
+and the detector's ``upright_cost`` chosen inside each fold too, 0.9081 / 0.8607
+(``benchmarks/ethz_detector_params.py``, ``ethz_detector_params_upright_pb.json``).
 
 It is transductive through ``appearance`` (the other photos, never their labels) and
 through ``margin`` / ``lead`` (the other detections of the same photo). A detection's own
@@ -88,17 +91,17 @@ __all__ = ["RESCORER_WEIGHTS", "detection_terms", "rescore_collection"]
 #: the module docstring for where they come from).
 RESCORER_WEIGHTS: Mapping[str, float] = MappingProxyType(
     {
-        "context": 0.9108,
-        "outline_dif": -1.1444,
-        "frame": 0.3061,
-        "coverage": 1.1034,
-        "margin": 0.2290,
-        "lead": 1.3840,
-        "appearance": 2.0797,
-        "template": 1.5151,
-        "template_support": 0.1523,
-        "template_gain": 1.8688,
-        "box_density": -2.5206,
+        "context": 1.1583,
+        "outline_dif": -0.2441,
+        "frame": 0.2436,
+        "coverage": 0.8827,
+        "margin": 0.1792,
+        "lead": 4.1377,
+        "appearance": 2.0423,
+        "template": 1.4640,
+        "template_support": 1.1139,
+        "template_gain": 0.8713,
+        "box_density": -3.6314,
     }
 )
 
