@@ -31,6 +31,9 @@ cost, box, coverage, where each model point lands) and NAME.png (image, edges, c
 detections: Fig. 5). A box is the whole object's where the upright model, fitted to the
 edges around the match and widened up to twice its box, fits better than inside it (the
 record's match_bbox then keeps the match's box; --param box_refine=None turns this off).
+The stitching prefers pieces that stand as the model is drawn (each contour turned from
+the model pays upright_cost * its model share * (1 - cos turn)); for objects at any
+angle use --param upright_cost=0, the paper's rotation-invariant matching.
 A run is resumable: an image whose record is there with the same model, parameters, edge
 source and image file is skipped (--force recomputes). A bad image
 (unreadable, empty, too large) is reported on stderr, gets an error record, and the batch

@@ -197,8 +197,9 @@ class DetectParams:
         upright template check of its box (:attr:`Detection.template`) (True). Its
         weights (a fit across images plus a fit of the choice within each image) were
         fitted on the ETHZ detections with Pb maps; held out (four classes fitted, the
-        fifth scored) the mean DR at 0.4 FPPI is 0.889 with it, against 0.768 for the
-        score alone on the earlier cost-order detections (README, detection section). A
+        fifth scored, with ``upright_cost`` and ``box_refine`` chosen in each fold too) the
+        mean DR at 0.4 FPPI is 0.908 with it, against 0.768 for the score alone on the
+        earlier cost-order detections (README, detection section). A
         detection's own ``score`` never depends on other images. False: the collection score is
         ``score + appearance_check * g`` (below), the score alone when that is 0.
     appearance_check : float
