@@ -132,7 +132,10 @@ reproduction::
         upright_cost=0.5@R2 --within shipped_off=B0 --within upright_cost=0.25=B1 \
         --within upright_cost=0.5=B2 --json benchmarks/results/ethz_detector_params_upright_pb.json
 
-with ``R*`` the rows and ``B*`` the ``ethz_box_refine.py`` records of the three runs
+(The first attempt at ``shipped_off`` ran with the refinement on: ``DetectParams.as_dict``
+dropped ``box_refine=None`` and the workers rebuilt the default. It was stopped, the bug
+fixed (42ab0a9) and all three runs made after the fix.) With ``R*`` the rows and ``B*``
+the ``ethz_box_refine.py`` records of the three runs
 (``ethz_box_refine_pb_upright_0.25.json``, ``..._0.5.json`` and, for the shipped detector,
 ``ethz_box_refine_pb_rerun_session48.json``).
 

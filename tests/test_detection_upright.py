@@ -33,33 +33,27 @@ def test_turn_of_a_model_interval_is_its_rotation(deg: float) -> None:
     assert np.all(np.abs(cos) <= 1 + 1e-12)
 
 
-def test_turn_is_undefined_for_a_point_piece() -> None:
+def test_turn_of_a_point_piece_is_a_clear_error() -> None:
+    from shapetree import CurveError
+
     model = _shape(np.linspace(0, 2 * np.pi, 12, endpoint=False)) * 40
-    cos = piece_turn_cos(model, [np.array([[5.0, 5.0], [5.0, 5.0]])])
-    assert np.all(cos == 1.0)  # no turn can be read: no cost
+    with pytest.raises(CurveError, match="zero length"):
+        piece_turn_cos(model, [np.array([[5.0, 5.0], [5.0, 5.0]])])
 
 
 def _pieces(ang: float, shift: tuple[float, float], cut: tuple[float, float] | None):
     """The model outline placed turned by ``ang``, in three open pieces, the arc
     ``cut`` (radians of the shape's parameter) left out."""
-    bounds = [0.3, 2.5, 5.2, 0.3 + 2 * np.pi]
-    out = []
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+    centre = _shape(np.linspace(0, 2 * np.pi, 400, endpoint=False)).mean(axis=0)
+    rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+    runs = []
+    for a, b in ((0.3, 2.5), (2.5, 5.2), (5.2, 0.3 + 2 * np.pi)):
         t = np.linspace(a, b, 300)
         if cut is not None:
             t = t[(t < cut[0]) | (t > cut[1])]
-            if len(t) < 2:
-                continue
-        out.append(t)
-    full = _shape(np.linspace(0, 2 * np.pi, 400, endpoint=False))
-    centre = full.mean(axis=0)
-    rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
-    place = lambda p: (p - centre) @ rot.T * 60 + np.asarray(shift)  # noqa: E731
-    runs = []
-    for t in out:
-        # split where the cut leaves a jump in t
-        breaks = np.flatnonzero(np.diff(t) > 0.05) + 1
-        runs += [place(_shape(s)) for s in np.split(t, breaks) if len(s) > 20]
+        for s in np.split(t, np.flatnonzero(np.diff(t) > 0.05) + 1):  # at the cut
+            if len(s) > 20:
+                runs.append((_shape(s) - centre) @ rot.T * 60 + np.asarray(shift))
     return runs
 
 
@@ -75,21 +69,31 @@ def test_upright_cost_prefers_the_placement_standing_as_drawn() -> None:
     assert prior[0].bbox[2] < 230  # the upright copy ranks first
     # ... and the turned copy's best match costs more, but at most upright_cost (its
     # old match, each piece turned by a quarter, is still there at that price)
-    turned_cost = {round(d.bbox[0]): d.cost for d in plain if d.bbox[0] > 230}
-    turned_prior = [d.cost for d in prior if d.bbox[0] > 230]
-    assert turned_prior and turned_cost
-    rise = turned_prior[0] - next(iter(turned_cost.values()))
+    rise = next(d.cost for d in prior if d.bbox[0] > 230) - plain[0].cost
     assert 0.05 < rise <= 0.5 + 1e-9
     # the upright copy's cost barely moves
-    up0 = [d.cost for d in plain if d.bbox[2] < 230]
-    assert up0 and abs(prior[0].cost - up0[0]) < 0.05
+    assert abs(prior[0].cost - next(d.cost for d in plain if d.bbox[2] < 230)) < 0.05
 
 
-@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf")])
-def test_upright_cost_must_be_finite_and_not_negative(bad: float) -> None:
+@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), True, "0.25"])
+def test_upright_cost_must_be_finite_and_not_negative(bad: object) -> None:
+    with pytest.raises(ShapeTreeError, match="upright_cost must be a finite number >= 0"):
+        DetectParams(upright_cost=bad)  # checked when the parameters are made
     model = make_model(_shape(np.linspace(0, 2 * np.pi, 100, endpoint=False)) * 60, m=16)
     with pytest.raises(ShapeTreeError, match="upright_cost"):
         detect(model, None, contours=[np.c_[np.arange(50.0), np.zeros(50)]], upright_cost=bad)
+
+
+def test_cli_refuses_a_bad_upright_cost_before_any_output(tmp_path, capsys) -> None:
+    from shapetree.cli import main
+
+    model = tmp_path / "model.npy"
+    np.save(model, _shape(np.linspace(0, 2 * np.pi, 100, endpoint=False)) * 60)
+    out = tmp_path / "out"  # the parameters are refused before any image is read
+    code = main(["detect", str(model), str(model), "--param", "upright_cost=-1", "-o", str(out)])
+    assert code == 2
+    assert "upright_cost must be a finite number >= 0" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_upright_cost_default() -> None:

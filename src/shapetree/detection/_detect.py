@@ -34,6 +34,10 @@ COLLECTION_FIELDS = ("collection_rescore", "appearance_check", "appearance_refer
 __all__ = ["Detection", "DetectParams", "detect", "detect_detailed", "DetectionRun"]
 
 
+#: :class:`DetectParams` weights and lengths that must be finite numbers >= 0
+_NON_NEGATIVE = ("frame_prior", "border_margin", "outline_check", "context_check", "upright_cost")
+
+
 @dataclass(frozen=True)
 class DetectParams:
     """Parameters of :func:`detect` (all lengths in image pixels).
@@ -273,6 +277,11 @@ class DetectParams:
     edge_weights: str | None = None
 
     def __post_init__(self) -> None:
+        for name in _NON_NEGATIVE:
+            v = getattr(self, name)
+            real = isinstance(v, numbers.Real) and not isinstance(v, bool)
+            if not (real and np.isfinite(v) and v >= 0):
+                raise ShapeTreeError(f"{name} must be a finite number >= 0, got {v!r}")
         if self.edge_method not in EDGE_METHODS:
             raise ShapeTreeError(
                 f"DetectParams.edge_method must be one of {EDGE_METHODS}, got {self.edge_method!r}"
@@ -746,10 +755,6 @@ def detect_detailed(
         p = dataclasses.replace(p, **overrides)
     if k < 1:
         raise ShapeTreeError(f"k must be >= 1, got {k}")
-    for name in ("frame_prior", "border_margin", "outline_check", "context_check", "upright_cost"):
-        v = getattr(p, name)
-        if not (np.isfinite(v) and v >= 0):
-            raise ShapeTreeError(f"{name} must be a finite number >= 0, got {v}")
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     if isinstance(model, DetectionModel):

@@ -19,22 +19,12 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from shapetree.curves import resample
+
 __all__ = ["TURN_SAMPLES", "piece_turn_cos"]
 
 #: points per piece and per model interval in the fit of the turn
 TURN_SAMPLES = 8
-
-
-def _arc_samples(poly: NDArray[np.float64], k: int) -> NDArray[np.complex128]:
-    """``k`` points of an open polyline equally spaced in arc length (complex), centred;
-    all zeros for a polyline of no length."""
-    seg = np.hypot(*np.diff(poly, axis=0).T)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
-    if cum[-1] <= 0:
-        return np.zeros(k, np.complex128)
-    t = np.linspace(0.0, cum[-1], k)
-    z = np.interp(t, cum, poly[:, 0]) + 1j * np.interp(t, cum, poly[:, 1])
-    return z - z.mean()
 
 
 def _interval_samples(model_points: NDArray[np.float64], k: int) -> NDArray[np.complex128]:
@@ -64,7 +54,9 @@ def piece_turn_cos(
         The closed model's samples (px of the model's own frame, ``y`` down like the
         image's).
     contours : sequence of ndarray, each shape (n_i, 2)
-        The open image contours (px).
+        The open image contours (px), each of some length (the stitching's are: they
+        were resampled for the tables already); one of zero length raises
+        :class:`~shapetree.CurveError`.
     k : int
         Points per piece in the fit (default :data:`TURN_SAMPLES`).
 
@@ -73,14 +65,16 @@ def piece_turn_cos(
     ndarray, shape (2 * len(contours), m, m)
         Entry ``[d, a, L]``: the cosine of the turn that takes model interval ``(a, L)``
         onto contour ``d // 2`` (reversed where ``d`` is odd), in ``[-1, 1]``; 1 where
-        the turn is undefined (``L = 0``, or a piece or interval of no extent).
+        the turn is undefined (``L = 0``, or a piece or interval whose samples do not
+        determine it).
     """
     p = _interval_samples(np.asarray(model_points, dtype=np.float64), k)
     q = np.empty((2 * len(contours), k), np.complex128)
     for i, c in enumerate(contours):
-        c = np.asarray(c, dtype=np.float64)
-        q[2 * i] = _arc_samples(c, k)
-        q[2 * i + 1] = _arc_samples(c[::-1], k)
+        r = resample(c, k, closed=False)
+        z = r[:, 0] + 1j * r[:, 1]
+        q[2 * i] = z - z.mean()
+        q[2 * i + 1] = q[2 * i][::-1]  # the same samples, read backwards
     inner = np.einsum("abk,dk->dab", np.conj(p), q)
     size = np.abs(inner)
     out = np.ones(inner.shape)
